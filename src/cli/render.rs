@@ -1,0 +1,166 @@
+//! `voxtrace render`.
+
+use super::CliError;
+use crate::output::Format;
+use crate::render::{render_scene, IndexKind, RenderOptions, Rendered, SpecularModel};
+use crate::scene::{self, Scene};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// The scene file (either dialect).
+    scene: PathBuf,
+    /// Output file; `.png` writes PNG, anything else binary PPM, `-` PNG to stdout.
+    /// Default: the scene's OUTPUT name (or `<scene>.ppm`) in the current directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Samples per pixel (1 = the pixel's corner, as the course did; more = stratified, jittered).
+    #[arg(long, default_value_t = 1)]
+    spp: u32,
+    /// Bounces of reflection/refraction (default: 3 classic, 16 browser dialect).
+    #[arg(long)]
+    depth: Option<u32>,
+    /// Render threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Print parse/build/render times and rays by kind on stderr.
+    #[arg(long)]
+    stats: bool,
+    /// Candidate search.
+    #[arg(long, value_enum, default_value_t = IndexKind::default())]
+    index: IndexKind,
+    /// Override the dialect's specular model.
+    #[arg(long, value_enum)]
+    specular: Option<SpecularModel>,
+    /// Stop recursing once a ray's weight cannot change the 8-bit output.
+    #[arg(long)]
+    adaptive: bool,
+}
+
+pub fn run(args: RenderArgs) -> Result<(), CliError> {
+    let display = args.scene.display().to_string();
+    let started = Instant::now();
+    let text = std::fs::read(&args.scene)
+        .map_err(|e| CliError::Failed(format!("cannot read {display}: {e}")))?;
+    let scene = scene::parse(&text).map_err(|error| CliError::Scene {
+        path: display.clone(),
+        error,
+    })?;
+    let parse_time = started.elapsed();
+    let options = RenderOptions {
+        spp: args.spp,
+        depth: args.depth,
+        specular: args.specular,
+        adaptive_cutoff: args.adaptive,
+        index: args.index,
+        deadline: None,
+    };
+    let pool = super::thread_pool(args.threads)?;
+    let progress = RowProgress::new(scene.camera.height);
+    let rendered = pool
+        .install(|| render_scene(&scene, &options, &|rows| progress.update(rows)))
+        .map_err(|e| CliError::Usage(e.to_string()))?;
+    progress.finish();
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| default_output(&scene, &args.scene));
+    write_image(&rendered, &output)?;
+    if args.stats {
+        print_stats(&rendered, parse_time, pool.current_num_threads());
+    }
+    Ok(())
+}
+
+/// The scene's OUTPUT name (its file name only: a scene never picks the
+/// directory), else the scene file's stem with `.ppm`.
+fn default_output(scene: &Scene, scene_path: &Path) -> PathBuf {
+    let named = scene
+        .output
+        .as_deref()
+        .and_then(|name| Path::new(name).file_name());
+    match named {
+        Some(name) => PathBuf::from(name),
+        None => {
+            let stem = scene_path.file_stem().unwrap_or_else(|| "render".as_ref());
+            PathBuf::from(stem).with_extension("ppm")
+        }
+    }
+}
+
+fn write_image(rendered: &Rendered, output: &Path) -> Result<(), CliError> {
+    let to_stdout = output == Path::new("-");
+    let format = if to_stdout {
+        Format::Png
+    } else {
+        Format::from_path(output)
+    };
+    let bytes = rendered
+        .image
+        .encode(format)
+        .map_err(|e| CliError::Failed(e.to_string()))?;
+    let result = if to_stdout {
+        std::io::stdout().lock().write_all(&bytes)
+    } else {
+        std::fs::write(output, &bytes)
+    };
+    result.map_err(|e| CliError::Failed(format!("cannot write {}: {e}", output.display())))
+}
+
+fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {
+    let s = &rendered.stats;
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    eprintln!("parse   {:10.2} ms", ms(parse_time));
+    eprintln!("build   {:10.2} ms", ms(s.build_time));
+    eprintln!("render  {:10.2} ms  ({threads} threads)", ms(s.render_time));
+    let r = &s.rays;
+    eprintln!(
+        "rays    eye {}  shadow {}  reflection {}  refraction {}  total {}",
+        r.eye,
+        r.shadow,
+        r.reflection,
+        r.refraction,
+        r.total()
+    );
+    eprintln!("speed   {:10.2} Mrays/s", s.mrays_per_second());
+}
+
+/// A progress bar on stderr, shown only on a terminal and only once the
+/// render has taken more than a second.
+struct RowProgress {
+    bar: ProgressBar,
+    started: Instant,
+    terminal: bool,
+}
+
+impl RowProgress {
+    fn new(rows: u32) -> Self {
+        let bar =
+            ProgressBar::with_draw_target(Some(u64::from(rows)), ProgressDrawTarget::hidden());
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:40} {pos}/{len} rows  {elapsed} (eta {eta})")
+        {
+            bar.set_style(style);
+        }
+        RowProgress {
+            bar,
+            started: Instant::now(),
+            terminal: std::io::stderr().is_terminal(),
+        }
+    }
+
+    fn update(&self, rows: u32) {
+        if self.terminal && self.bar.is_hidden() && self.started.elapsed() > Duration::from_secs(1)
+        {
+            self.bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+        self.bar.set_position(u64::from(rows));
+    }
+
+    fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}

@@ -1,0 +1,260 @@
+//! The ray/ellipsoid hit.
+//!
+//! An ellipsoid is the unit sphere scaled by `S` then moved to `C`. A ray
+//! `o + t·d` meets it where the inverse-transformed ray `f + t·e`, with
+//! `f = (o − C)/S` and `e = d/S`, meets the unit sphere:
+//!
+//! ```text
+//!     a·t² + 2b·t + c = 0,   a = e·e,  b = f·e,  c = f·f − 1.
+//! ```
+//!
+//! The textbook discriminant `b² − a·c` cancels catastrophically when the
+//! sphere is small or far (b² ≈ a·c). Following Ray Tracing Gems ch. 7 we use
+//! `b² − a·c = a·(1 − |l|²)`, where `l = f − (b/a)·e` is the point of the line
+//! closest to the centre: both terms are small when the result is. `l` itself is
+//! the difference of two nearly equal vectors along `e` when the origin is far,
+//! so we project its leftover `e` component out once more. The roots are
+//! `q/a` and `c/q` with `q = −b − sign(b)·√disc`, neither of which cancels.
+
+use super::{Ray, Real, Vec3Ops, V3};
+use crate::scene::Sphere;
+
+/// An ellipsoid in the precision `R`, with its inverse scale precomputed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ellipsoid<R: Real> {
+    pub center: V3<R>,
+    pub scale: V3<R>,
+    pub inv_scale: V3<R>,
+}
+
+/// Where a ray meets an ellipsoid, with what shading and spawning need.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint<R: Real> {
+    pub point: V3<R>,
+    /// Unit normal, facing the side the ray came from.
+    pub normal: V3<R>,
+    /// True when the ray hit the surface from inside the ellipsoid.
+    pub inside: bool,
+    /// A per-axis bound on the error of `point`, for [`super::spawn_origin`].
+    pub error: V3<R>,
+}
+
+/// The inverse-transformed ray and the closest point of its line to the centre.
+struct LocalRay<R: Real> {
+    f: V3<R>,
+    e: V3<R>,
+    a: R,
+    b: R,
+    /// The point of the line nearest the centre, in unit-sphere space.
+    l: V3<R>,
+}
+
+impl<R: Real> Ellipsoid<R> {
+    pub fn new(center: V3<R>, scale: V3<R>) -> Self {
+        Ellipsoid {
+            center,
+            scale,
+            inv_scale: scale.recip(),
+        }
+    }
+
+    pub fn from_sphere(sphere: &Sphere) -> Self {
+        Self::new(
+            V3::<R>::from_dvec3(sphere.center),
+            V3::<R>::from_dvec3(sphere.scale),
+        )
+    }
+
+    #[inline(always)]
+    fn local(&self, ray: &Ray<R>) -> LocalRay<R> {
+        let f = (ray.origin - self.center) * self.inv_scale;
+        let e = ray.dir * self.inv_scale;
+        let a = e.dot(e);
+        let b = f.dot(e);
+        let l = f - e * (b / a);
+        let l = l - e * (l.dot(e) / a);
+        LocalRay { f, e, a, b, l }
+    }
+
+    /// The nearest t in the open interval (t_min, t_max) where the ray meets
+    /// the surface, if any.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
+        let LocalRay { f, a, b, l, .. } = self.local(ray);
+        let disc = a * (R::one() - l.dot(l));
+        if !(disc >= R::zero()) {
+            return None;
+        }
+        let c = f.dot(f) - R::one();
+        let q = -(b + disc.sqrt().copysign(b));
+        let (t0, t1) = (c / q, q / a);
+        let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+        if near > t_min && near < t_max {
+            Some(near)
+        } else if far > t_min && far < t_max {
+            Some(far)
+        } else {
+            None
+        }
+    }
+
+    /// The surface point at the ray's parameter `t` (a root from [`Self::intersect`]).
+    ///
+    /// The point is rebuilt from the closest approach `l` plus the chord
+    /// offset `±√(1 − |l|²)` along the ray, which stays accurate when `t`
+    /// is large compared with the ellipsoid, then projected onto the surface.
+    pub fn surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
+        let LocalRay { e, a, b, l, .. } = self.local(ray);
+        let half_chord = (R::one() - l.dot(l)).max(R::zero()).sqrt() / a.sqrt();
+        let entering = t < -b / a;
+        let local = if entering {
+            l - e * half_chord
+        } else {
+            l + e * half_chord
+        };
+        let local = local / local.length();
+        let offset = local * self.scale;
+        let outward = (local * self.inv_scale).normalize();
+        let inside = outward.dot(ray.dir) > R::zero();
+        let error = (self.center.abs() + offset.abs()) * R::gamma(8);
+        SurfacePoint {
+            point: self.center + offset,
+            normal: if inside { -outward } else { outward },
+            inside,
+            error,
+        }
+    }
+
+    /// Whether `p` lies strictly inside.
+    pub fn contains(&self, p: V3<R>) -> bool {
+        let f = (p - self.center) * self.inv_scale;
+        f.dot(f) < R::one()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DVec3, Vec3};
+
+    fn unit() -> Ellipsoid<f32> {
+        Ellipsoid::new(Vec3::ZERO, Vec3::ONE)
+    }
+
+    #[test]
+    fn through_the_centre_hits_both_walls() {
+        let ray = Ray::new(Vec3::new(0.0, 0.0, 5.0), Vec3::new(0.0, 0.0, -1.0));
+        assert_eq!(unit().intersect(&ray, 0.0, f32::INFINITY), Some(4.0));
+        assert_eq!(unit().intersect(&ray, 4.5, f32::INFINITY), Some(6.0));
+        let p = unit().surface_point(&ray, 4.0);
+        assert_eq!(p.normal, Vec3::Z);
+        assert!(!p.inside);
+    }
+
+    #[test]
+    fn from_inside_sees_the_far_wall_with_the_normal_flipped() {
+        let ray = Ray::new(Vec3::new(0.0, 0.0, 0.25), Vec3::new(0.0, 0.0, -1.0));
+        let t = unit().intersect(&ray, 0.0, f32::INFINITY).unwrap();
+        assert_eq!(t, 1.25);
+        let p = unit().surface_point(&ray, t);
+        assert!(p.inside);
+        assert_eq!(p.normal, Vec3::Z, "the normal faces the ray");
+    }
+
+    #[test]
+    fn grazing_rays_hit_once_inside_the_rim_and_miss_outside() {
+        let s = unit();
+        let hit = Ray::new(Vec3::new(0.0, 0.999_999, 5.0), Vec3::NEG_Z);
+        let miss = Ray::new(Vec3::new(0.0, 1.000_001, 5.0), Vec3::NEG_Z);
+        let t = s
+            .intersect(&hit, 0.0, f32::INFINITY)
+            .expect("inside the rim");
+        assert!((t - 5.0).abs() < 0.01);
+        assert_eq!(s.intersect(&miss, 0.0, f32::INFINITY), None);
+    }
+
+    #[test]
+    fn axis_parallel_rays_with_negative_zero_components() {
+        let s = Ellipsoid::<f32>::new(Vec3::new(0.0, 0.0, -3.0), Vec3::new(1.0, 2.0, 0.5));
+        for dir in [
+            Vec3::new(-0.0, -0.0, -1.0),
+            Vec3::new(0.0, -0.0, -1.0),
+            Vec3::new(-0.0, 0.0, -2.0),
+        ] {
+            let ray = Ray::new(Vec3::new(-0.0, 0.0, 0.0), dir);
+            let t = s.intersect(&ray, 0.0, f32::INFINITY).expect("hits");
+            assert!((ray.at(t).z + 2.5).abs() < 1e-6);
+        }
+        let sideways = Ray::new(Vec3::new(5.0, -0.0, -3.0), Vec3::new(-1.0, -0.0, 0.0));
+        assert_eq!(s.intersect(&sideways, 0.0, f32::INFINITY), Some(4.0));
+    }
+
+    /// Radius 1e-3 at distance 1e4: the textbook discriminant loses every bit
+    /// here in f32; the disc must still be round and solid.
+    #[test]
+    fn tiny_far_sphere_is_a_solid_disc() {
+        let s = Ellipsoid::<f32>::new(Vec3::new(0.0, 0.0, -1e4), Vec3::splat(1e-3));
+        let n = 64;
+        let mut misses_inside = 0;
+        let mut hits_outside = 0;
+        for i in 0..n {
+            for j in 0..n {
+                // Offsets in units of the radius, over [-1.25, 1.25]².
+                let (u, v) = (
+                    (i as f64 + 0.5) / n as f64 * 2.5 - 1.25,
+                    (j as f64 + 0.5) / n as f64 * 2.5 - 1.25,
+                );
+                let dir = DVec3::new(u * 1e-7, v * 1e-7, -1.0);
+                let ray = Ray::new(Vec3::ZERO, dir.as_vec3());
+                let hit = s.intersect(&ray, 1.0, f32::INFINITY);
+                let r = (u * u + v * v).sqrt();
+                if r < 0.98 && hit.is_none() {
+                    misses_inside += 1;
+                }
+                if r > 1.02 && hit.is_some() {
+                    hits_outside += 1;
+                }
+                if let Some(t) = hit {
+                    let p = s.surface_point(&ray, t);
+                    assert!(p.normal.z > 0.0, "the visible half faces the eye");
+                    let expected = DVec3::new(u, v, (1.0 - r * r).max(0.0).sqrt());
+                    assert!(
+                        p.normal.as_dvec3().dot(expected) > 0.99,
+                        "normal at ({u}, {v})"
+                    );
+                }
+            }
+        }
+        assert_eq!((misses_inside, hits_outside), (0, 0));
+    }
+
+    /// A planet of radius 1e6 seen from 1 unit above: the ground below is hit
+    /// at t ≈ 1 and the horizon is where geometry puts it.
+    #[test]
+    fn huge_sphere_from_just_above() {
+        let s = Ellipsoid::<f32>::new(Vec3::new(0.0, -1e6 - 1.0, 0.0), Vec3::splat(1e6));
+        let down = Ray::new(Vec3::ZERO, Vec3::NEG_Y);
+        let t = s.intersect(&down, 0.0, f32::INFINITY).unwrap();
+        assert!((t - 1.0).abs() < 0.07, "t = {t}");
+        // Every ray pointing below the horizon (dip ≈ √(2/1e6) ≈ 1.4e-3) hits.
+        for k in 1..200 {
+            let dip = 0.002 + k as f32 * 0.005;
+            let ray = Ray::new(Vec3::ZERO, Vec3::new(1.0, -dip, 0.0).normalize());
+            assert!(s.intersect(&ray, 0.0, f32::INFINITY).is_some(), "dip {dip}");
+        }
+        let up = Ray::new(Vec3::ZERO, Vec3::new(1.0, 0.0005, 0.0));
+        assert_eq!(s.intersect(&up, 0.0, f32::INFINITY), None);
+    }
+
+    #[test]
+    fn ellipsoid_normal_is_the_inverse_transpose() {
+        let s = Ellipsoid::<f64>::new(DVec3::ZERO, DVec3::new(2.0, 1.0, 1.0));
+        let dir = DVec3::new(-1.0, -1.0, 0.0);
+        let ray = Ray::new(DVec3::new(3.0, 2.0, 0.0), dir);
+        let t = s.intersect(&ray, 0.0, f64::INFINITY).unwrap();
+        let p = s.surface_point(&ray, t);
+        let expected = (p.point / DVec3::new(4.0, 1.0, 1.0)).normalize();
+        assert!((p.normal - expected).length() < 1e-12);
+        assert!((p.point - ray.at(t)).length() < 1e-12);
+    }
+}

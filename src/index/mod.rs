@@ -1,0 +1,33 @@
+//! Candidate search: which sphere a ray meets first, and whether it meets any.
+//!
+//! The renderer sees only [`SphereIndex`]. [`BruteForce`] tests every sphere;
+//! it is the oracle the faster indexes are checked against.
+
+mod brute;
+
+pub use brute::BruteForce;
+
+use crate::geometry::{Ray, Real};
+
+/// The nearest sphere a ray meets and where along the ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit<R> {
+    pub t: R,
+    pub sphere: u32,
+}
+
+impl<R: Real> Hit<R> {
+    /// The order every index agrees on: nearer first, and on an exact tie the
+    /// lower sphere id, so that all indexes return the same hit.
+    #[inline]
+    pub fn is_before(&self, other: &Hit<R>) -> bool {
+        self.t < other.t || (self.t == other.t && self.sphere < other.sphere)
+    }
+}
+
+pub trait SphereIndex<R: Real>: Sync {
+    /// The nearest hit with t in the open interval (t_min, t_max).
+    fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>>;
+    /// Whether any sphere meets the ray with t in (0, t_max). Shadow rays.
+    fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool;
+}

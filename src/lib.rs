@@ -1,0 +1,13 @@
+//! voxtrace: a fast, exact ray tracer for spheres and ellipsoids.
+//!
+//! Data flows one way: scene text → [`scene::Scene`] → an index
+//! ([`index::SphereIndex`]) → [`render`] → [`output::Image`] → PNG/PPM, over
+//! the command line ([`cli`]) or HTTP.
+
+pub mod cli;
+pub mod geometry;
+pub mod index;
+pub mod limits;
+pub mod output;
+pub mod render;
+pub mod scene;

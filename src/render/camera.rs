@@ -1,0 +1,161 @@
+//! Eye rays: from the origin through the image plane z = −near.
+
+use crate::scene::Camera;
+use glam::DVec3;
+
+/// Where in each pixel the eye rays go, and how their colours combine.
+///
+/// Pixel (column c, row r counted from the top) spans the image-plane square
+/// whose upper-left corner is `(L + c/W·(R−L), T − r/H·(T−B))`. One sample is
+/// that corner, as the course's renderer did; N samples are stratified
+/// (an √N×√N jittered grid when N is square, N-rooks otherwise) and averaged.
+pub struct PixelSampler {
+    camera: Camera,
+    spp: u32,
+}
+
+impl PixelSampler {
+    pub fn new(camera: &Camera, spp: u32) -> Self {
+        PixelSampler {
+            camera: *camera,
+            spp: spp.max(1),
+        }
+    }
+
+    /// The unnormalised eye-ray direction through image position (x, y), in
+    /// pixels from the upper-left corner; t = 1 lies on the near plane.
+    pub fn direction(&self, x: f64, y: f64) -> DVec3 {
+        let c = &self.camera;
+        DVec3::new(
+            c.left + x / f64::from(c.width) * (c.right - c.left),
+            c.top - y / f64::from(c.height) * (c.top - c.bottom),
+            -c.near,
+        )
+    }
+
+    /// The mean of `radiance` over the pixel's samples, each clamped to [0, 1]
+    /// first so that one very bright sample cannot outweigh the rest.
+    pub fn average(
+        &self,
+        column: u32,
+        row: u32,
+        mut radiance: impl FnMut(DVec3) -> DVec3,
+    ) -> DVec3 {
+        let (x, y) = (f64::from(column), f64::from(row));
+        if self.spp == 1 {
+            return radiance(self.direction(x, y));
+        }
+        let mut rng = PixelRng::new(column, row);
+        let n = self.spp;
+        let side = (f64::from(n).sqrt().round() as u32).max(1);
+        let mut sum = DVec3::ZERO;
+        for i in 0..n {
+            let (u, v) = if side * side == n {
+                (
+                    (f64::from(i % side) + rng.next()) / f64::from(side),
+                    (f64::from(i / side) + rng.next()) / f64::from(side),
+                )
+            } else {
+                // N-rooks: one sample per column stratum and one per row
+                // stratum, rows paired by a cheap per-pixel shuffle.
+                let j = (i + rng.offset(n)) % n;
+                (
+                    (f64::from(i) + rng.next()) / f64::from(n),
+                    (f64::from(j) + rng.next()) / f64::from(n),
+                )
+            };
+            sum += radiance(self.direction(x + u, y + v)).clamp(DVec3::ZERO, DVec3::ONE);
+        }
+        sum / f64::from(n)
+    }
+}
+
+/// A small deterministic generator seeded by the pixel, so images do not
+/// depend on which thread renders which row (SplitMix64).
+struct PixelRng {
+    state: u64,
+    offset: Option<u32>,
+}
+
+impl PixelRng {
+    fn new(column: u32, row: u32) -> Self {
+        PixelRng {
+            state: (u64::from(row) << 32 | u64::from(column)).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+            offset: None,
+        }
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    fn next(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// One random shift in [0, n) per pixel, for pairing N-rooks strata.
+    fn offset(&mut self, n: u32) -> u32 {
+        match self.offset {
+            Some(o) => o,
+            None => {
+                let o = (self.next_u64() % u64::from(n)) as u32;
+                self.offset = Some(o);
+                o
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> Camera {
+        Camera {
+            near: 1.0,
+            left: -1.0,
+            right: 1.0,
+            bottom: -1.0,
+            top: 1.0,
+            width: 4,
+            height: 2,
+        }
+    }
+
+    #[test]
+    fn one_sample_is_the_pixel_corner_with_row_zero_at_the_top() {
+        let s = PixelSampler::new(&camera(), 1);
+        assert_eq!(s.direction(0.0, 0.0), DVec3::new(-1.0, 1.0, -1.0));
+        assert_eq!(s.direction(2.0, 1.0), DVec3::new(0.0, 0.0, -1.0));
+        let mut seen = vec![];
+        s.average(3, 1, |d| {
+            seen.push(d);
+            DVec3::ONE
+        });
+        assert_eq!(seen, vec![DVec3::new(0.5, 0.0, -1.0)]);
+    }
+
+    #[test]
+    fn many_samples_stay_inside_the_pixel_and_cover_its_strata() {
+        for spp in [4, 16, 5] {
+            let s = PixelSampler::new(&camera(), spp);
+            let mut xs = vec![];
+            s.average(1, 0, |d| {
+                // Pixel 1 spans x in [-0.5, 0), y in (0, 1].
+                assert!((-0.5..0.0).contains(&d.x) && d.y > 0.0 && d.y <= 1.0, "{d}");
+                xs.push(((d.x + 0.5) / 0.5 * spp as f64) as u32);
+                DVec3::ZERO
+            });
+            assert_eq!(xs.len(), spp as usize);
+            if spp == 5 {
+                xs.sort();
+                assert_eq!(xs, vec![0, 1, 2, 3, 4], "one sample per column stratum");
+            }
+        }
+    }
+}

@@ -1,0 +1,243 @@
+//! From a scene and an index to an image: camera rays, the two shading models,
+//! recursion, and parallel rows.
+
+mod camera;
+mod shading;
+
+pub use camera::PixelSampler;
+
+use crate::geometry::{Ellipsoid, Real};
+use crate::index::{BruteForce, SphereIndex};
+use crate::limits;
+use crate::output::Image;
+use crate::scene::{Dialect, Scene};
+use rayon::prelude::*;
+use shading::Tracer;
+use std::fmt;
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+/// Which specular highlight to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SpecularModel {
+    /// `max(0, R·V)^n`, R the light mirrored about the normal (the classic model's own).
+    Phong,
+    /// `max(0, N·H)^n`, H halfway between light and viewer (the browser model's own).
+    Blinn,
+}
+
+/// Which candidate search to use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum IndexKind {
+    /// Test every sphere (the exactness oracle).
+    #[default]
+    Brute,
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Samples per pixel: 1 is the course's corner sample; more are stratified and jittered.
+    pub spp: u32,
+    /// Bounces of reflection/refraction; `None` uses the dialect's default.
+    pub depth: Option<u32>,
+    /// Overrides the dialect's specular model.
+    pub specular: Option<SpecularModel>,
+    /// Stop recursing once a ray's weight cannot change an 8-bit output value.
+    pub adaptive_cutoff: bool,
+    pub index: IndexKind,
+    /// Give up (with [`RenderError::TimedOut`]) once this instant has passed.
+    pub deadline: Option<Instant>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            spp: 1,
+            depth: None,
+            specular: None,
+            adaptive_cutoff: false,
+            index: IndexKind::default(),
+            deadline: None,
+        }
+    }
+}
+
+impl RenderOptions {
+    pub fn depth_for(&self, dialect: Dialect) -> u32 {
+        self.depth.unwrap_or(match dialect {
+            Dialect::Classic => limits::DEFAULT_CLASSIC_DEPTH,
+            Dialect::Browser => limits::DEFAULT_BROWSER_DEPTH,
+        })
+    }
+}
+
+/// Rays traced, by why they were traced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    pub eye: u64,
+    pub shadow: u64,
+    pub reflection: u64,
+    pub refraction: u64,
+}
+
+impl RayCounts {
+    pub fn total(&self) -> u64 {
+        self.eye + self.shadow + self.reflection + self.refraction
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RenderStats {
+    pub rays: RayCounts,
+    /// Time to build the index.
+    pub build_time: Duration,
+    /// Time to trace every pixel.
+    pub render_time: Duration,
+}
+
+impl RenderStats {
+    pub fn mrays_per_second(&self) -> f64 {
+        self.rays.total() as f64 / self.render_time.as_secs_f64().max(1e-9) / 1e6
+    }
+}
+
+#[derive(Debug)]
+pub struct Rendered {
+    pub image: Image,
+    pub stats: RenderStats,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RenderError {
+    /// The render passed its deadline and was abandoned.
+    TimedOut,
+    /// An option outside what the renderer accepts.
+    BadOption(String),
+}
+
+impl fmt::Display for RenderError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RenderError::TimedOut => write!(f, "the render exceeded its time budget"),
+            RenderError::BadOption(why) => write!(f, "{why}"),
+        }
+    }
+}
+
+impl std::error::Error for RenderError {}
+
+/// Called from the render threads with the number of rows finished so far.
+pub type Progress<'a> = &'a (dyn Fn(u32) + Sync);
+
+/// Renders `scene` in f32 with the index `options.index` names, on the
+/// current rayon pool.
+pub fn render_scene(
+    scene: &Scene,
+    options: &RenderOptions,
+    progress: Progress,
+) -> Result<Rendered, RenderError> {
+    render_in::<f32>(scene, options, progress)
+}
+
+/// Renders in the precision `R`: f32 is the fast path, f64 the reference.
+pub fn render_in<R: Real>(
+    scene: &Scene,
+    options: &RenderOptions,
+    progress: Progress,
+) -> Result<Rendered, RenderError> {
+    check_options(options)?;
+    let started = Instant::now();
+    let shapes: Vec<Ellipsoid<R>> = scene.spheres.iter().map(Ellipsoid::from_sphere).collect();
+    match options.index {
+        IndexKind::Brute => {
+            let index = BruteForce::new(&shapes);
+            render_with(scene, &shapes, &index, options, started.elapsed(), progress)
+        }
+    }
+}
+
+fn check_options(options: &RenderOptions) -> Result<(), RenderError> {
+    if options.spp == 0 || options.spp > limits::MAX_SPP {
+        return Err(RenderError::BadOption(format!(
+            "spp must be between 1 and {}",
+            limits::MAX_SPP
+        )));
+    }
+    if options.depth.is_some_and(|d| d > limits::MAX_DEPTH) {
+        return Err(RenderError::BadOption(format!(
+            "depth must be at most {}",
+            limits::MAX_DEPTH
+        )));
+    }
+    Ok(())
+}
+
+/// Traces every pixel of `scene` against `index`, rows in parallel. The
+/// output depends only on the inputs, not on the thread count or schedule.
+pub fn render_with<R: Real, I: SphereIndex<R>>(
+    scene: &Scene,
+    shapes: &[Ellipsoid<R>],
+    index: &I,
+    options: &RenderOptions,
+    build_time: Duration,
+    progress: Progress,
+) -> Result<Rendered, RenderError> {
+    let started = Instant::now();
+    let tracer = Tracer::new(scene, shapes, index, options);
+    let sampler = PixelSampler::new(&scene.camera, options.spp);
+    let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
+    let mut rgb = vec![0u8; width * height * 3];
+    let totals: [AtomicU64; 4] = Default::default();
+    let rows_done = AtomicU32::new(0);
+    let timed_out = AtomicBool::new(false);
+    rgb.par_chunks_mut(width * 3)
+        .enumerate()
+        .for_each(|(row, out)| {
+            if timed_out.load(Ordering::Relaxed)
+                || options.deadline.is_some_and(|d| Instant::now() > d)
+            {
+                timed_out.store(true, Ordering::Relaxed);
+                return;
+            }
+            let mut counts = RayCounts::default();
+            for (column, pixel) in out.chunks_exact_mut(3).enumerate() {
+                let color = sampler.average(column as u32, row as u32, |dir| {
+                    tracer.trace_eye(dir, &mut counts)
+                });
+                pixel.copy_from_slice(&to_bytes(color));
+            }
+            for (total, n) in totals.iter().zip([
+                counts.eye,
+                counts.shadow,
+                counts.reflection,
+                counts.refraction,
+            ]) {
+                total.fetch_add(n, Ordering::Relaxed);
+            }
+            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
+        });
+    if timed_out.into_inner() {
+        return Err(RenderError::TimedOut);
+    }
+    let [eye, shadow, reflection, refraction] = totals.map(AtomicU64::into_inner);
+    Ok(Rendered {
+        image: Image::from_rgb(scene.camera.width, scene.camera.height, rgb),
+        stats: RenderStats {
+            rays: RayCounts {
+                eye,
+                shadow,
+                reflection,
+                refraction,
+            },
+            build_time,
+            render_time: started.elapsed(),
+        },
+    })
+}
+
+/// Clamps to [0, 1] (NaN to 0) and quantises as the course did: `floor(255·c)`.
+fn to_bytes(color: glam::DVec3) -> [u8; 3] {
+    color
+        .to_array()
+        .map(|c| (255.0 * c.max(0.0).min(1.0)).floor() as u8)
+}

@@ -1,0 +1,321 @@
+//! The two shading models and the recursion that joins them.
+//!
+//! Geometry runs in the precision `R`; colours are always f64 (cheap next to
+//! the intersection work, and it keeps the f32/f64 comparison about geometry).
+
+use super::{RayCounts, RenderOptions, SpecularModel};
+use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
+use crate::index::{Hit, SphereIndex};
+use crate::limits;
+use crate::scene::{Dialect, Material, Scene};
+use glam::DVec3;
+
+/// Why a secondary ray is traced, for the statistics.
+#[derive(Clone, Copy)]
+enum Bounce {
+    Reflection,
+    Refraction,
+}
+
+pub(super) struct Tracer<'a, R: Real, I> {
+    scene: &'a Scene,
+    shapes: &'a [Ellipsoid<R>],
+    index: &'a I,
+    /// Lights in the geometry's precision, those with zero intensity left out.
+    lights: Vec<(V3<R>, DVec3)>,
+    max_depth: u32,
+    specular: SpecularModel,
+    /// Smallest weight worth a secondary ray, and how a weight is measured.
+    min_weight: f64,
+    weight_norm: fn(DVec3) -> f64,
+    /// What a secondary ray that meets nothing returns.
+    secondary_miss: DVec3,
+}
+
+impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
+    pub fn new(
+        scene: &'a Scene,
+        shapes: &'a [Ellipsoid<R>],
+        index: &'a I,
+        options: &RenderOptions,
+    ) -> Self {
+        let lights = scene
+            .lights
+            .iter()
+            .filter(|l| l.intensity != DVec3::ZERO)
+            .map(|l| (V3::<R>::from_dvec3(l.position), l.intensity))
+            .collect();
+        let (own_specular, secondary_miss) = match scene.dialect {
+            Dialect::Classic => (SpecularModel::Phong, DVec3::ZERO),
+            Dialect::Browser => (SpecularModel::Blinn, scene.ambient * scene.background),
+        };
+        // The browser model's own rule measures the weight's length; the
+        // adaptive cut-off asks whether any channel can still move a level.
+        let (min_weight, weight_norm): (f64, fn(DVec3) -> f64) =
+            match (scene.dialect, options.adaptive_cutoff) {
+                (Dialect::Browser, _) => (limits::BROWSER_MIN_WEIGHT, DVec3::length),
+                (Dialect::Classic, true) => (limits::ADAPTIVE_MIN_WEIGHT, DVec3::max_element),
+                (Dialect::Classic, false) => (0.0, DVec3::max_element),
+            };
+        Tracer {
+            scene,
+            shapes,
+            index,
+            lights,
+            max_depth: options.depth_for(scene.dialect),
+            specular: options.specular.unwrap_or(own_specular),
+            min_weight,
+            weight_norm,
+            secondary_miss,
+        }
+    }
+
+    /// The colour seen along an eye ray: the nearest hit beyond the near plane (t > 1).
+    pub fn trace_eye(&self, dir: DVec3, counts: &mut RayCounts) -> DVec3 {
+        counts.eye += 1;
+        let ray = Ray::new(V3::<R>::ZERO, V3::<R>::from_dvec3(dir));
+        match self.index.closest_hit(&ray, R::one(), R::infinity()) {
+            Some(hit) => self.shade(&ray, hit, 0, DVec3::ONE, counts),
+            None => match self.scene.dialect {
+                Dialect::Classic => self.scene.background,
+                Dialect::Browser => self.secondary_miss,
+            },
+        }
+    }
+
+    /// A reflected or refracted ray, which carries `weight` of the pixel.
+    fn trace_secondary(
+        &self,
+        ray: &Ray<R>,
+        depth: u32,
+        weight: DVec3,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        match self.index.closest_hit(ray, R::zero(), R::infinity()) {
+            Some(hit) => self.shade(ray, hit, depth, weight, counts),
+            None => self.secondary_miss,
+        }
+    }
+
+    fn shade(
+        &self,
+        ray: &Ray<R>,
+        hit: Hit<R>,
+        depth: u32,
+        weight: DVec3,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        let id = hit.sphere as usize;
+        let surface = self.shapes[id].surface_point(ray, hit.t);
+        let material = &self.scene.spheres[id].material;
+        let view = -ray.dir.normalize();
+        match self.scene.dialect {
+            Dialect::Classic => {
+                self.shade_classic(ray, &surface, material, view, depth, weight, counts)
+            }
+            Dialect::Browser => {
+                self.shade_browser(ray, &surface, material, view, depth, weight, counts)
+            }
+        }
+    }
+
+    /// `Ka·A·O + Σ (Kd·I·(N·L)·O + Ks·I·spec^n) + Kr·reflected + Krefract·refracted`.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_classic(
+        &self,
+        ray: &Ray<R>,
+        surface: &SurfacePoint<R>,
+        m: &Material,
+        view: V3<R>,
+        depth: u32,
+        weight: DVec3,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        let mut color = m.ambient * self.scene.ambient * m.color;
+        color += self.direct_light(surface, m, view, counts, |intensity, n_dot_l, spec| {
+            intensity * (m.diffuse * n_dot_l * m.color + DVec3::splat(m.specular * spec))
+        });
+        let scalar = |k: f64| DVec3::splat(k);
+        color += self.bounces(ray, surface, m, depth, weight, scalar, counts);
+        color
+    }
+
+    /// `surface = min(k_a·O + Σ I⊙(k_d·(N·L)·O + k_s·spec^n), 1)`, then
+    /// `surface + (1 − surface)⊙(k_r·reflected + k_refract·refracted)`.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_browser(
+        &self,
+        ray: &Ray<R>,
+        surface: &SurfacePoint<R>,
+        m: &Material,
+        view: V3<R>,
+        depth: u32,
+        weight: DVec3,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        let mut local = m.ambient * m.color;
+        local += self.direct_light(surface, m, view, counts, |intensity, n_dot_l, spec| {
+            intensity * (m.diffuse * n_dot_l * m.color + DVec3::splat(m.specular * spec))
+        });
+        let local = local.min(DVec3::ONE);
+        let open = DVec3::ONE - local;
+        local + open * self.bounces(ray, surface, m, depth, weight, |k| k * open, counts)
+    }
+
+    /// Σ over unshadowed lights of `term(I, N·L, specular^n)`.
+    ///
+    /// A light with N·L ≤ 0 is behind the surface, so the closed surface
+    /// itself shadows it: no shadow ray is needed, nor any term.
+    fn direct_light(
+        &self,
+        surface: &SurfacePoint<R>,
+        m: &Material,
+        view: V3<R>,
+        counts: &mut RayCounts,
+        term: impl Fn(DVec3, f64, f64) -> DVec3,
+    ) -> DVec3 {
+        let mut sum = DVec3::ZERO;
+        if m.diffuse == 0.0 && m.specular == 0.0 {
+            return sum;
+        }
+        let n = surface.normal;
+        for &(position, intensity) in &self.lights {
+            let to_light = (position - surface.point).normalize();
+            let n_dot_l = n.dot(to_light);
+            if !(n_dot_l > R::zero()) {
+                continue;
+            }
+            if self.trace_shadow_ray(surface, position, counts) {
+                continue;
+            }
+            let spec = if m.specular > 0.0 {
+                self.specular_base(n, to_light, view)
+                    .to_f64()
+                    .powf(m.shininess)
+            } else {
+                0.0
+            };
+            sum += term(intensity, n_dot_l.to_f64(), spec);
+        }
+        sum
+    }
+
+    /// Whether something lies between the surface point and the light.
+    fn trace_shadow_ray(
+        &self,
+        surface: &SurfacePoint<R>,
+        light: V3<R>,
+        counts: &mut RayCounts,
+    ) -> bool {
+        counts.shadow += 1;
+        let origin = spawn_origin(surface, light - surface.point);
+        // t = 1 is the light itself; blockers beyond it do not count.
+        self.index
+            .any_hit(&Ray::new(origin, light - origin), R::one())
+    }
+
+    /// `max(0, R·V)` (Phong) or `max(0, N·H)` (Blinn).
+    fn specular_base(&self, n: V3<R>, to_light: V3<R>, view: V3<R>) -> R {
+        let base = match self.specular {
+            SpecularModel::Phong => (n * (R::from_f64(2.0) * n.dot(to_light)) - to_light).dot(view),
+            SpecularModel::Blinn => n.dot((to_light + view).normalize()),
+        };
+        base.max(R::zero())
+    }
+
+    /// The reflected and refracted contributions, each weighted by `factor(k)`
+    /// (a plain coefficient in the classic model, blended in the browser one).
+    #[allow(clippy::too_many_arguments)]
+    fn bounces(
+        &self,
+        ray: &Ray<R>,
+        surface: &SurfacePoint<R>,
+        m: &Material,
+        depth: u32,
+        weight: DVec3,
+        factor: impl Fn(f64) -> DVec3,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        let mut sum = DVec3::ZERO;
+        if depth >= self.max_depth {
+            return sum;
+        }
+        let dir = ray.dir.normalize();
+        let n = surface.normal;
+        for (k, bounce) in [
+            (m.reflect, Bounce::Reflection),
+            (m.refract, Bounce::Refraction),
+        ] {
+            if k == 0.0 {
+                continue;
+            }
+            let gain = factor(k);
+            let next_weight = weight * gain;
+            if (self.weight_norm)(next_weight) < self.min_weight || next_weight == DVec3::ZERO {
+                continue;
+            }
+            let out = match bounce {
+                Bounce::Reflection => {
+                    counts.reflection += 1;
+                    reflect::<R>(dir, n)
+                }
+                Bounce::Refraction => {
+                    counts.refraction += 1;
+                    let ratio = if surface.inside {
+                        R::one() / R::from_f64(m.ior)
+                    } else {
+                        R::from_f64(m.ior)
+                    };
+                    // Total internal reflection sends the light back inside, with the same weight.
+                    refract(dir, n, ratio).unwrap_or_else(|| reflect::<R>(dir, n))
+                }
+            };
+            let next = Ray::new(spawn_origin(surface, out), out);
+            sum += gain * self.trace_secondary(&next, depth + 1, next_weight, counts);
+        }
+        sum
+    }
+}
+
+/// `d` mirrored about the unit normal `n`.
+fn reflect<R: Real>(d: V3<R>, n: V3<R>) -> V3<R> {
+    d - n * (R::from_f64(2.0) * d.dot(n))
+}
+
+/// Snell's law for the unit direction `d` through a surface with unit normal
+/// `n` facing `d`'s origin, with `ratio = n₁/n₂`; `None` on total internal reflection.
+fn refract<R: Real>(d: V3<R>, n: V3<R>, ratio: R) -> Option<V3<R>> {
+    let cos_i = -n.dot(d);
+    let k = R::one() - ratio * ratio * (R::one() - cos_i * cos_i);
+    (k >= R::zero()).then(|| (d * ratio + n * (ratio * cos_i - k.sqrt())).normalize())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3 as V;
+
+    #[test]
+    fn refraction_bends_towards_the_normal_on_entering_and_reflects_totally_past_the_critical_angle(
+    ) {
+        let n = V::Z;
+        let d = V::new(1.0, 0.0, -1.0).normalize();
+        let t = refract(d, n, 1.0 / 1.5).unwrap();
+        let sin_t = t.x / t.length();
+        assert!(
+            (sin_t - d.x / 1.5).abs() < 1e-12,
+            "Snell: sin θt = sin θi / 1.5"
+        );
+        // Leaving glass at 45° (critical angle ≈ 41.8°) reflects totally.
+        assert_eq!(refract(d, n, 1.5), None);
+        assert_eq!(refract(-n, n, 1.5), Some(-n), "head-on passes straight");
+    }
+
+    #[test]
+    fn reflect_mirrors_about_the_normal() {
+        assert_eq!(
+            reflect::<f64>(V::new(1.0, -1.0, 0.0), V::Y),
+            V::new(1.0, 1.0, 0.0)
+        );
+    }
+}

@@ -1,0 +1,115 @@
+use std::fmt;
+
+/// A scene that cannot be rendered, with where the problem is.
+/// Lines and columns count from 1; columns count characters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneError {
+    pub line: usize,
+    pub column: usize,
+    pub kind: SceneErrorKind,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneErrorKind {
+    /// A token that is not a number where a number belongs.
+    ExpectedNumber {
+        field: &'static str,
+        found: String,
+    },
+    /// NaN, an infinity, or a literal too large for a double (`1e999`).
+    NotFinite {
+        field: &'static str,
+        found: String,
+    },
+    /// The line ended before this field.
+    MissingField {
+        field: &'static str,
+    },
+    /// More tokens than the directive takes.
+    ExtraToken {
+        found: String,
+    },
+    UnknownKeyword {
+        found: String,
+    },
+    /// A number outside the values the field allows; `rule` says which ones.
+    OutOfRange {
+        field: &'static str,
+        value: f64,
+        rule: &'static str,
+    },
+    /// RES needs whole numbers.
+    NotWhole {
+        field: &'static str,
+        found: String,
+    },
+    /// NEAR, LEFT, … given twice.
+    Duplicate {
+        keyword: &'static str,
+        first_line: usize,
+    },
+    /// A required directive never appeared.
+    MissingDirective {
+        keyword: &'static str,
+    },
+    /// LEFT ≥ RIGHT or BOTTOM ≥ TOP.
+    EmptyExtent {
+        low: &'static str,
+        high: &'static str,
+        low_value: f64,
+        high_value: f64,
+    },
+    /// A SPHERE/LIGHT line in the other dialect than the file's earlier ones.
+    MixedDialects {
+        first_line: usize,
+    },
+    /// The OUTPUT name is missing or not UTF-8.
+    BadOutputName,
+    TooMany {
+        what: &'static str,
+        limit: usize,
+    },
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "line {}, column {}: {}",
+            self.line, self.column, self.kind
+        )
+    }
+}
+
+impl fmt::Display for SceneErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use SceneErrorKind::*;
+        match self {
+            ExpectedNumber { field, found } => write!(f, "expected a number for {field}, found {found:?}"),
+            NotFinite { field, found } => write!(f, "expected a finite number for {field}, found {found:?}"),
+            MissingField { field } => write!(f, "expected {field}, found the end of the line"),
+            ExtraToken { found } => write!(f, "unexpected {found:?} after the last field"),
+            UnknownKeyword { found } => write!(
+                f,
+                "unknown directive {found:?} (expected NEAR, LEFT, RIGHT, BOTTOM, TOP, RES, SPHERE, LIGHT, BACK, AMBIENT or OUTPUT)"
+            ),
+            OutOfRange { field, value, rule } => write!(f, "{field} must be {rule}, found {value}"),
+            NotWhole { field, found } => write!(f, "{field} must be a whole number, found {found:?}"),
+            Duplicate { keyword, first_line } => {
+                write!(f, "{keyword} is given again (first on line {first_line})")
+            }
+            MissingDirective { keyword } => write!(f, "the scene has no {keyword} line"),
+            EmptyExtent { low, high, low_value, high_value } => {
+                write!(f, "{low} ({low_value}) must be less than {high} ({high_value})")
+            }
+            MixedDialects { first_line } => write!(
+                f,
+                "this line is in the other dialect than line {first_line} (named and unnamed SPHERE/LIGHT lines cannot be mixed)"
+            ),
+            BadOutputName => write!(f, "OUTPUT needs a file name in UTF-8"),
+            TooMany { what, limit } => write!(f, "more than {limit} {what}"),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
