@@ -76,19 +76,30 @@ impl<R: Real> Ellipsoid<R> {
         LocalRay { f, e, a, b, l }
     }
 
-    /// The nearest t in the open interval (t_min, t_max) where the ray meets
-    /// the surface, if any.
-    #[inline]
-    pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
-        let LocalRay { f, a, b, l, .. } = self.local(ray);
+    /// Both roots of the quadratic, nearer first, if the line meets the surface.
+    #[inline(always)]
+    fn roots(&self, ray: &Ray<R>) -> Option<(LocalRay<R>, R, R)> {
+        let local = self.local(ray);
+        let LocalRay { f, a, b, l, .. } = local;
         let disc = a * (R::one() - l.dot(l));
-        if !(disc >= R::zero()) {
+        if disc.is_nan() || disc < R::zero() {
             return None;
         }
         let c = f.dot(f) - R::one();
         let q = -(b + disc.sqrt().copysign(b));
         let (t0, t1) = (c / q, q / a);
-        let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+        Some(if t0 <= t1 {
+            (local, t0, t1)
+        } else {
+            (local, t1, t0)
+        })
+    }
+
+    /// The nearest t in the open interval (t_min, t_max) where the ray meets
+    /// the surface, if any.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
+        let (_, near, far) = self.roots(ray)?;
         if near > t_min && near < t_max {
             Some(near)
         } else if far > t_min && far < t_max {
@@ -103,15 +114,27 @@ impl<R: Real> Ellipsoid<R> {
     /// The point is rebuilt from the closest approach `l` plus the chord
     /// offset `±√(1 − |l|²)` along the ray, which stays accurate when `t`
     /// is large compared with the ellipsoid, then projected onto the surface.
+    /// Which wall was hit is read from which root `t` is (recomputed bit for
+    /// bit), because comparing `t` with the midpoint fails once the chord is
+    /// below one ulp of `t`.
     pub fn surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
-        let LocalRay { e, a, b, l, .. } = self.local(ray);
+        let Some((LocalRay { e, a, l, .. }, near, _)) = self.roots(ray) else {
+            // Only reachable when `t` did not come from `intersect`: take the
+            // point on the ray as it is.
+            let local = (ray.at(t) - self.center) * self.inv_scale;
+            return self.surface_at(ray, local);
+        };
         let half_chord = (R::one() - l.dot(l)).max(R::zero()).sqrt() / a.sqrt();
-        let entering = t < -b / a;
-        let local = if entering {
+        let local = if t == near {
             l - e * half_chord
         } else {
             l + e * half_chord
         };
+        self.surface_at(ray, local)
+    }
+
+    /// The surface point at `local` (in unit-sphere space), projected onto the surface.
+    fn surface_at(&self, ray: &Ray<R>, local: V3<R>) -> SurfacePoint<R> {
         let local = local / local.length();
         let offset = local * self.scale;
         let outward = (local * self.inv_scale).normalize();

@@ -63,7 +63,12 @@ mod tests {
                 };
                 let hit = s.surface_point(&ray, t);
                 // Leaving outwards (reflection): no hit at all.
-                let out = Vec3::new(rand(), rand(), rand()) + hit.normal * 1.01;
+                let side = Vec3::new(rand(), rand(), rand());
+                let out = if side.dot(hit.normal) < 0.0 {
+                    -side
+                } else {
+                    side
+                } + hit.normal * 0.05;
                 let origin = spawn_origin(&hit, out);
                 assert_eq!(
                     s.intersect(&Ray::new(origin, out), 0.0, f32::INFINITY),

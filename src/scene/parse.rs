@@ -12,7 +12,7 @@ pub fn parse(text: impl AsRef<[u8]>) -> Result<Scene, SceneError> {
     let mut line_count = 0;
     for (i, line) in split_lines(text.as_ref()).enumerate() {
         line_count = i + 1;
-        let directive = parse_line(i + 1, line)?;
+        let directive = parse_line(i + 1, line).map_err(|e| builder.explain(i + 1, line, e))?;
         builder.apply(i + 1, directive)?;
     }
     builder.finish(line_count.max(1))
@@ -524,6 +524,26 @@ impl SceneBuilder {
                 self.lights.push(light);
                 Ok(())
             }
+        }
+    }
+
+    /// A line in the other dialect fails on its field count; saying so is
+    /// more useful than naming the missing field.
+    fn explain(&self, line_number: usize, line: &[u8], error: SceneError) -> SceneError {
+        let mut tokens = Tokens::new(line_number, line);
+        let is_object = tokens
+            .next()
+            .and_then(|(_, word)| Keyword::from_token(word))
+            .is_some_and(|k| matches!(k, Keyword::Sphere | Keyword::Light));
+        match self.dialect {
+            Some((first, first_line)) if is_object && named_dialect(&mut tokens) != first => {
+                SceneError {
+                    line: line_number,
+                    column: 1,
+                    kind: SceneErrorKind::MixedDialects { first_line },
+                }
+            }
+            _ => error,
         }
     }
 

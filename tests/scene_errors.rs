@@ -1,0 +1,319 @@
+//! Malformed scenes: each gives the right error kind at the right line and
+//! column, through the library and through `voxtrace render` (exit code 2).
+
+use std::process::Command;
+use voxtrace::scene::{parse, SceneErrorKind as K};
+
+const HEAD: &str = "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n";
+const SPHERE: &str = "SPHERE s1 0 0 -10 2 4 2 0.5 0 0 1 1 0.9 0 50";
+
+struct Case {
+    name: &'static str,
+    text: Vec<u8>,
+    line: usize,
+    column: usize,
+    kind: fn(&K) -> bool,
+}
+
+fn case(
+    name: &'static str,
+    text: impl Into<Vec<u8>>,
+    line: usize,
+    column: usize,
+    kind: fn(&K) -> bool,
+) -> Case {
+    Case {
+        name,
+        text: text.into(),
+        line,
+        column,
+        kind,
+    }
+}
+
+fn with_head(tail: &str) -> String {
+    format!("{HEAD}{tail}\n")
+}
+
+fn cases() -> Vec<Case> {
+    vec![
+        case(
+            "comma decimal",
+            with_head("SPHERE s1 0 0 -10 2 2,0 2 0.5 0 0 1 1 0.9 0 50"),
+            7,
+            21,
+            |k| matches!(k, K::ExpectedNumber { field: "<scl y>", found } if found == "2,0"),
+        ),
+        case(
+            "missing field",
+            with_head("SPHERE s1 0 0 -10 2 4 2 0.5 0 0 1 1 0.9 0"),
+            7,
+            42,
+            |k| matches!(k, K::MissingField { field: "<n>" }),
+        ),
+        case(
+            "extra token",
+            with_head(&format!("{SPHERE} 0.5 1.5 7")),
+            7,
+            54,
+            |k| matches!(k, K::ExtraToken { found } if found == "7"),
+        ),
+        case("NaN", with_head("LIGHT l1 0 NaN 0 1 1 1"), 7, 12, |k| {
+            matches!(
+                k,
+                K::NotFinite {
+                    field: "<pos y>",
+                    ..
+                }
+            )
+        }),
+        case("inf", with_head("BACK 1 inf 0"), 7, 8, |k| {
+            matches!(k, K::NotFinite { field: "<g>", .. })
+        }),
+        case("1e999", with_head("AMBIENT 1e999 0 0"), 7, 9, |k| {
+            matches!(k, K::NotFinite { field: "<Ir>", .. })
+        }),
+        case(
+            "zero scale",
+            with_head("SPHERE s1 0 0 -10 2 0 2 0.5 0 0 1 1 0.9 0 50"),
+            7,
+            21,
+            |k| {
+                matches!(
+                    k,
+                    K::OutOfRange {
+                        field: "<scl y>",
+                        ..
+                    }
+                )
+            },
+        ),
+        case(
+            "fractional RES",
+            "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 600 60.5\n",
+            6,
+            9,
+            |k| matches!(k, K::NotWhole { field: "<y>", .. }),
+        ),
+        case(
+            "zero RES",
+            "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 0 600\n",
+            6,
+            5,
+            |k| matches!(k, K::OutOfRange { field: "<x>", .. }),
+        ),
+        case(
+            "LEFT >= RIGHT",
+            "NEAR 1\nLEFT 1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n",
+            3,
+            7,
+            |k| {
+                matches!(
+                    k,
+                    K::EmptyExtent {
+                        low: "LEFT",
+                        high: "RIGHT",
+                        ..
+                    }
+                )
+            },
+        ),
+        case(
+            "BOTTOM >= TOP, BOTTOM last",
+            "NEAR 1\nLEFT -1\nRIGHT 1\nTOP 1\nRES 4 4\nBOTTOM 2\n",
+            6,
+            8,
+            |k| {
+                matches!(
+                    k,
+                    K::EmptyExtent {
+                        low: "BOTTOM",
+                        high: "TOP",
+                        ..
+                    }
+                )
+            },
+        ),
+        case(
+            "NEAR <= 0",
+            "NEAR 0\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n",
+            1,
+            6,
+            |k| matches!(k, K::OutOfRange { field: "NEAR", .. }),
+        ),
+        case("negative NEAR", "NEAR -2\n", 1, 6, |k| {
+            matches!(k, K::OutOfRange { field: "NEAR", .. })
+        }),
+        case("duplicate NEAR", format!("{HEAD}NEAR 2\n"), 7, 1, |k| {
+            matches!(
+                k,
+                K::Duplicate {
+                    keyword: "NEAR",
+                    first_line: 1
+                }
+            )
+        }),
+        case("duplicate RES", format!("{HEAD}\n\nres 8 8\n"), 9, 1, |k| {
+            matches!(
+                k,
+                K::Duplicate {
+                    keyword: "RES",
+                    first_line: 6
+                }
+            )
+        }),
+        case(
+            "unknown keyword",
+            with_head("SPHERES s1 0 0 -10"),
+            7,
+            1,
+            |k| matches!(k, K::UnknownKeyword { found } if found == "SPHERES"),
+        ),
+        case("empty file", "", 1, 1, |k| {
+            matches!(k, K::MissingDirective { keyword: "NEAR" })
+        }),
+        case(
+            "missing RES",
+            "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\n",
+            5,
+            1,
+            |k| matches!(k, K::MissingDirective { keyword: "RES" }),
+        ),
+        case(
+            "binary garbage",
+            b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR".to_vec(),
+            1,
+            1,
+            |k| matches!(k, K::UnknownKeyword { .. }),
+        ),
+        case(
+            "name-less classic line",
+            with_head(&format!(
+                "{SPHERE}\nSPHERE 4 4 -10 1 2 1 0 0.5 0 1 1 0.9 0 50"
+            )),
+            8,
+            1,
+            |k| matches!(k, K::MixedDialects { first_line: 7 }),
+        ),
+        case(
+            "15-number browser line",
+            with_head("SPHERE 0 0 -10 2 4 2 0.5 0 0 1 0 0 50 0 0"),
+            7,
+            42,
+            |k| {
+                matches!(
+                    k,
+                    K::MissingField {
+                        field: "<refract_index>"
+                    }
+                )
+            },
+        ),
+        case(
+            "truncated last line",
+            format!("{HEAD}LIGHT l1 0 0 0 0.9 0.9"),
+            7,
+            23,
+            |k| matches!(k, K::MissingField { field: "<Ib>" }),
+        ),
+        case(
+            "negative colour",
+            with_head("SPHERE s1 0 0 -10 2 4 2 0.5 -0.1 0 1 1 0.9 0 50"),
+            7,
+            29,
+            |k| matches!(k, K::OutOfRange { field: "<g>", .. }),
+        ),
+        case(
+            "refraction pair cut in half",
+            with_head(&format!("{SPHERE} 0.5")),
+            7,
+            49,
+            |k| matches!(k, K::MissingField { field: "<ior>" }),
+        ),
+        case(
+            "zero ior",
+            with_head(&format!("{SPHERE} 0.5 0")),
+            7,
+            50,
+            |k| matches!(k, K::OutOfRange { field: "<ior>", .. }),
+        ),
+        case(
+            "OUTPUT without a name",
+            with_head("OUTPUT   "),
+            7,
+            10,
+            |k| matches!(k, K::BadOutputName),
+        ),
+        case(
+            "CRLF and TABs keep columns",
+            "NEAR\t1\r\nLEFT\t-1\r\nRIGHT\tx\r\n",
+            3,
+            7,
+            |k| matches!(k, K::ExpectedNumber { field: "<r>", .. }),
+        ),
+        case(
+            "column counts characters",
+            with_head("LIGHT lümière 0 0 0 1 1 é"),
+            7,
+            25,
+            |k| matches!(k, K::ExpectedNumber { field: "<Ib>", .. }),
+        ),
+    ]
+}
+
+#[test]
+fn library_reports_kind_line_and_column() {
+    let cases = cases();
+    assert!(cases.len() >= 20);
+    for c in &cases {
+        let err = parse(&c.text).expect_err(c.name);
+        assert!((c.kind)(&err.kind), "{}: wrong kind: {err}", c.name);
+        assert_eq!(
+            (err.line, err.column),
+            (c.line, c.column),
+            "{}: {err}",
+            c.name
+        );
+        let message = err.to_string();
+        assert!(
+            message.starts_with(&format!("line {}, column {}: ", c.line, c.column)),
+            "{message}"
+        );
+    }
+}
+
+#[test]
+fn cli_exits_2_with_the_message_on_stderr() {
+    let dir = std::env::temp_dir().join(format!("voxtrace-errors-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (i, c) in cases().iter().enumerate() {
+        let path = dir.join(format!("case{i}.txt"));
+        std::fs::write(&path, &c.text).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_voxtrace"))
+            .args(["render", path.to_str().unwrap(), "-o"])
+            .arg(dir.join("out.png"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{}: {stderr}", c.name);
+        assert!(
+            stderr.contains(&format!("line {}, column {}: ", c.line, c.column)),
+            "{}: {stderr}",
+            c.name
+        );
+        assert!(out.stdout.is_empty());
+    }
+    assert!(!dir.join("out.png").exists(), "no output for a bad scene");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn cli_usage_errors_exit_2_and_missing_files_exit_1() {
+    let bin = env!("CARGO_BIN_EXE_voxtrace");
+    let status = |args: &[&str]| Command::new(bin).args(args).output().unwrap().status.code();
+    assert_eq!(status(&["render"]), Some(2), "no scene given");
+    assert_eq!(status(&["render", "x.txt", "--spp", "many"]), Some(2));
+    assert_eq!(status(&["frobnicate"]), Some(2));
+    assert_eq!(status(&["render", "/nonexistent/scene.txt"]), Some(1));
+    assert_eq!(status(&["--help"]), Some(0));
+}
