@@ -2,6 +2,7 @@
 //! Each subcommand's arguments live next to the code that runs it.
 
 mod render;
+mod serve;
 
 use clap::{Parser, Subcommand};
 use std::fmt;
@@ -22,6 +23,8 @@ struct Cli {
 enum Command {
     /// Render a scene file to PPM or PNG.
     Render(render::RenderArgs),
+    /// Serve renders over HTTP: POST a scene to /render, get a PNG.
+    Serve(serve::ServeArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -68,6 +71,7 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Serve(args) => serve::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
