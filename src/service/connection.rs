@@ -123,10 +123,9 @@ fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
             false,
         );
     }
-    if length > 0 && head.expects_continue() && !conn.has_pending() {
-        if conn.stream.write_all(http::CONTINUE).is_err() {
-            return Step::Gone;
-        }
+    let wants_continue = length > 0 && head.expects_continue() && !conn.has_pending();
+    if wants_continue && conn.stream.write_all(http::CONTINUE).is_err() {
+        return Step::Gone;
     }
     let body = match conn.read_body(length as usize, state.config.body_timeout) {
         Ok(body) => body,

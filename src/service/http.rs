@@ -194,6 +194,9 @@ impl Connection {
         let mut headers = [httparse::EMPTY_HEADER; limits::MAX_HEADERS];
         let mut request = httparse::Request::new(&mut headers);
         match request.parse(&self.pending) {
+            Ok(httparse::Status::Complete(len)) if len > limits::MAX_HEAD_BYTES => {
+                Err(ReadError::HeadTooLarge)
+            }
             Ok(httparse::Status::Complete(len)) => {
                 let head = to_head(&request);
                 self.pending.drain(..len);
