@@ -582,3 +582,37 @@ fn sixteen_concurrent_clients_are_all_served_correctly() {
     assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 32\n"));
     assert!(metrics.contains("voxtrace_renders_total 32\n"));
 }
+
+#[test]
+fn slow_clients_cannot_hold_every_handler_while_others_wait() {
+    // Two handlers, both taken by clients that trickle their heads; the
+    // normal client waiting behind them must not wait the full head timeout.
+    let server = start(ServiceConfig {
+        workers: 2,
+        head_timeout: Duration::from_secs(20),
+        idle_timeout: Duration::from_secs(20),
+        ..ServiceConfig::default()
+    });
+    let mut slow: Vec<Client> = (0..2).map(|_| Client::connect(server.addr())).collect();
+    for client in &mut slow {
+        client.send(b"GET /healthz HTTP/1.1\r\nX-Slow: ");
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    let started = Instant::now();
+    let reply = Client::connect(server.addr()).request("GET", "/healthz", &[], b"");
+    assert_eq!(reply.status, 200);
+    assert!(
+        started.elapsed() < Duration::from_secs(5),
+        "waited {:?}",
+        started.elapsed()
+    );
+    // At least one trickling client was cut off (408) to make room.
+    let cut_off = slow.iter_mut().any(|client| {
+        let stream = client.reader.get_ref();
+        stream.set_nonblocking(true).unwrap();
+        let mut first = [0u8; 12];
+        let n = stream.peek(&mut first).unwrap_or(0);
+        &first[..n] == b"HTTP/1.1 408"
+    });
+    assert!(cut_off);
+}

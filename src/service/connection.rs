@@ -7,6 +7,7 @@ use super::routes;
 use super::State;
 use std::io::Write;
 use std::net::TcpStream;
+use std::time::Instant;
 
 /// How one request ended.
 enum Step {
@@ -16,10 +17,10 @@ enum Step {
     Gone,
 }
 
-pub fn serve(state: &State, stream: TcpStream) {
+pub fn serve(state: &State, stream: TcpStream, accepted: Instant) {
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(state.config.write_timeout));
-    let mut conn = Connection::new(stream);
+    let mut conn = Connection::new(stream, accepted);
     let pressure = || state.connections_waiting() || state.stopping();
     loop {
         let head = match conn.read_head(&state.config.timeouts(), &pressure) {
@@ -63,6 +64,7 @@ pub fn serve(state: &State, stream: TcpStream) {
                 if written.is_err() || !keep {
                     return;
                 }
+                conn.request_done();
             }
         }
     }

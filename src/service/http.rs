@@ -136,47 +136,59 @@ impl RequestHead {
 pub struct Connection {
     pub stream: TcpStream,
     pending: Vec<u8>,
+    /// Since when the connection has been ready for its next request: its
+    /// accept, then the end of each response.
+    ready_since: Instant,
 }
 
 impl Connection {
-    pub fn new(stream: TcpStream) -> Self {
+    pub fn new(stream: TcpStream, accepted: Instant) -> Self {
         Connection {
             stream,
             pending: Vec::new(),
+            ready_since: accepted,
         }
     }
 
+    /// Marks the end of a response: the idle clock starts again.
+    pub fn request_done(&mut self) {
+        self.ready_since = Instant::now();
+    }
+
     /// Reads the next request head. `pressure()` is asked between reads:
-    /// while it holds, the connection gets only `timeouts.pressured` to
-    /// finish its head (or to start one, if idle).
+    /// while it holds, the request must be complete within
+    /// `timeouts.pressured` of the connection becoming ready (its accept, or
+    /// the previous response), so clients that trickle their heads or sit
+    /// idle cannot hold the handlers while others wait. What already arrived
+    /// is always read once before that judgement.
     pub fn read_head(
         &mut self,
         timeouts: &Timeouts,
         pressure: &dyn Fn() -> bool,
     ) -> Result<RequestHead, ReadError> {
-        let waiting_since = Instant::now();
-        let mut head_started = (!self.pending.is_empty()).then_some(waiting_since);
+        let mut head_started = (!self.pending.is_empty()).then(Instant::now);
+        let mut read_once = false;
         loop {
             if !self.pending.is_empty() {
                 if let Some(head) = self.parse_pending()? {
                     return Ok(head);
                 }
             }
-            let (since, budget) = match head_started {
-                None => (waiting_since, timeouts.idle),
-                Some(t) => (t, timeouts.head),
+            let mut deadline = match head_started {
+                None => self.ready_since + timeouts.idle,
+                Some(t) => t + timeouts.head,
             };
-            let budget = if pressure() {
-                budget.min(timeouts.pressured)
-            } else {
-                budget
-            };
-            let Some(left) = (since + budget).checked_duration_since(Instant::now()) else {
+            if pressure() {
+                deadline = deadline.min(self.ready_since + timeouts.pressured);
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() && read_once {
                 return Err(match head_started {
                     None => ReadError::Closed,
                     Some(_) => ReadError::Stalled,
                 });
-            };
+            }
+            read_once = true;
             match self.read_some(left.min(READ_SLICE)) {
                 Ok(0) => return Err(ReadError::Closed),
                 Ok(_) => {

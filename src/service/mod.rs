@@ -21,11 +21,12 @@ use admission::Admission;
 use metrics::Metrics;
 use std::io::{self, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
+use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread::{self, JoinHandle};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Stack of a connection handler: parsing, routing and encoding only; the
 /// deep work runs on the render pool's threads.
@@ -167,7 +168,7 @@ impl Server {
 
     /// Serves until stopped through a [`ServerHandle`] (from `spawn`), or forever.
     pub fn run(self) -> io::Result<()> {
-        let (sender, receiver) = mpsc::sync_channel::<TcpStream>(self.state.config.backlog);
+        let (sender, receiver) = mpsc::sync_channel::<Accepted>(self.state.config.backlog);
         let receiver = Arc::new(Mutex::new(receiver));
         let handlers = (0..self.state.config.workers)
             .map(|i| {
@@ -186,7 +187,7 @@ impl Server {
         Ok(())
     }
 
-    fn accept(&self, sender: &SyncSender<TcpStream>) {
+    fn accept(&self, sender: &SyncSender<Accepted>) {
         let state = &self.state;
         for stream in self.listener.incoming() {
             if state.stopping() {
@@ -203,8 +204,8 @@ impl Server {
             };
             state.metrics.connection_opened();
             state.backlog_len.fetch_add(1, Ordering::Relaxed);
-            if let Err(TrySendError::Full(stream) | TrySendError::Disconnected(stream)) =
-                sender.try_send(stream)
+            if let Err(TrySendError::Full((stream, _)) | TrySendError::Disconnected((stream, _))) =
+                sender.try_send((stream, Instant::now()))
             {
                 state.backlog_len.fetch_sub(1, Ordering::Relaxed);
                 turn_away(state, stream);
@@ -227,15 +228,26 @@ impl Server {
     }
 }
 
-fn handle_connections(state: &State, receiver: &Mutex<Receiver<TcpStream>>) {
+/// A connection and when it was accepted.
+type Accepted = (TcpStream, Instant);
+
+fn handle_connections(state: &State, receiver: &Mutex<Receiver<Accepted>>) {
     loop {
         let next = receiver
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .recv();
-        let Ok(stream) = next else { return };
+        let Ok((stream, accepted)) = next else { return };
         state.backlog_len.fetch_sub(1, Ordering::Relaxed);
-        connection::serve(state, stream);
+        // A bug that panics while serving one connection must not shrink the
+        // fixed pool: the panic ends that connection only. Admission tickets
+        // and counters are released by their destructors during the unwind.
+        let served = panic::catch_unwind(AssertUnwindSafe(|| {
+            connection::serve(state, stream, accepted)
+        }));
+        if served.is_err() {
+            state.metrics.request("panic", 500);
+        }
         state.metrics.connection_closed();
     }
 }
