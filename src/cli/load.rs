@@ -2,6 +2,7 @@
 
 use super::CliError;
 use crate::tools::load::{self, LoadConfig, Stop, Url};
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -62,8 +63,8 @@ pub fn run(args: LoadArgs) -> Result<(), CliError> {
         progress: !args.json,
     };
     let report = load::run(&config).map_err(CliError::Usage)?;
-    if args.json {
-        println!("{}", report.to_json(&config));
+    let text = if args.json {
+        report.to_json(&config).to_string()
     } else {
         let mode = match config.rate {
             Some(rate) => format!("open loop at {rate} req/s"),
@@ -74,11 +75,16 @@ pub fn run(args: LoadArgs) -> Result<(), CliError> {
         } else {
             args.url.clone()
         };
-        println!(
-            "target    {target}  ({mode}, {} connections)",
+        format!(
+            "target    {target}  ({mode}, {} connections)\n{report}",
             config.concurrency
-        );
-        println!("{report}");
+        )
+    };
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        // A closed pipe (`| head`) is the reader's choice, not a failure.
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(CliError::Failed(format!("cannot write the report: {e}")))
+        }
+        _ => Ok(()),
     }
-    Ok(())
 }

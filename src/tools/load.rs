@@ -147,7 +147,12 @@ struct Sample {
 /// What a run measured.
 #[derive(Debug)]
 pub struct Report {
+    /// The measuring window: the whole `--duration`, or the time to finish
+    /// `--requests`.
     pub elapsed: Duration,
+    /// Requests still in flight when the window closed; like wrk, they are
+    /// left out of every other figure.
+    pub unfinished: u64,
     pub requests: u64,
     pub status: BTreeMap<u16, u64>,
     pub errors: BTreeMap<&'static str, u64>,
@@ -259,6 +264,7 @@ impl Report {
             "rate": config.rate,
             "elapsed_s": self.elapsed.as_secs_f64(),
             "requests": self.requests,
+            "unfinished": self.unfinished,
             "requests_per_s": self.requests_per_s(),
             "renders": self.renders,
             "renders_per_s": self.renders_per_s(),
@@ -277,9 +283,10 @@ impl fmt::Display for Report {
         let secs = self.elapsed.as_secs_f64();
         writeln!(
             f,
-            "requests  {} in {secs:.2} s = {:.1} req/s",
+            "requests  {} in {secs:.2} s = {:.1} req/s ({} unfinished at the end, not counted)",
             self.requests,
-            self.requests_per_s()
+            self.requests_per_s(),
+            self.unfinished
         )?;
         writeln!(
             f,
@@ -334,6 +341,7 @@ impl fmt::Display for Report {
 struct Live {
     done: AtomicU64,
     failed: AtomicU64,
+    unfinished: AtomicU64,
     finished: AtomicBool,
 }
 
@@ -409,10 +417,13 @@ pub fn run(config: &LoadConfig) -> Result<Report, String> {
         run.live.finished.store(true, Ordering::Relaxed);
         samples
     });
-    Ok(summarize(
-        samples.into_iter().flatten().collect(),
-        run.started.elapsed(),
-    ))
+    let window = match config.stop {
+        Stop::After(window) => window,
+        Stop::Requests(_) => run.started.elapsed(),
+    };
+    let mut report = summarize(samples.into_iter().flatten().collect(), window);
+    report.unfinished = run.live.unfinished.load(Ordering::Relaxed);
+    Ok(report)
 }
 
 fn request_bytes(config: &LoadConfig) -> Vec<u8> {
@@ -449,6 +460,12 @@ fn worker(run: &Run) -> Vec<Sample> {
         } else {
             exchange(run, &mut conn, &mut scratch, due)
         };
+        if let Stop::After(window) = run.config.stop {
+            if run.started.elapsed() > window {
+                run.live.unfinished.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+        }
         run.live.done.fetch_add(1, Ordering::Relaxed);
         if !matches!(sample.outcome, Outcome::Status(200)) {
             run.live.failed.fetch_add(1, Ordering::Relaxed);
@@ -626,6 +643,7 @@ fn summarize(mut samples: Vec<Sample>, elapsed: Duration) -> Report {
     samples.sort_by_key(|s| s.latency);
     let mut report = Report {
         elapsed,
+        unfinished: 0,
         requests: samples.len() as u64,
         status: BTreeMap::new(),
         errors: BTreeMap::new(),
