@@ -5,13 +5,14 @@
 #   cargo build --release
 #   bench/service.sh [throughput|overload|slowloris|fuzz|wrk|all]
 #
-# Environment: DUR (per run, default 5s), REPS (interleaved repetitions,
+# Environment: DUR (per run, default 5s; DUR_HEAVY 15s for the heavy scene), REPS (interleaved repetitions,
 # default 3), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
 # Needs python3 (slowloris, fuzz, JSON) and wrk (apt-get install -y wrk).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${VOXTRACE_BIN:-target/release/voxtrace}
 DUR=${DUR:-5s}
+DUR_HEAVY=${DUR_HEAVY:-15s}
 REPS=${REPS:-3}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
 WORK=$(mktemp -d)
@@ -49,24 +50,32 @@ proc() { awk -v k="$1:" '$1 == k {print $2}' "/proc/$SERVER/status"; }
 metric() { curl -s "http://$ADDR/metrics" | awk -v m="$1" '$1 == m {print $2}'; }
 
 throughput() {
-    echo "### Throughput: service vs in-process (renders/s, median of $REPS × $DUR, interleaved)"
+    echo "### Throughput: service vs in-process (renders/s, median of $REPS runs of $DUR ($DUR_HEAVY heavy), interleaved)"
     echo
-    echo "| scene | concurrency | in-process | service | service / in-process |"
-    echo "|---|---:|---:|---:|---:|"
+    echo "| scene | concurrency | in-process | service | service / in-process | service / in-process saturation |"
+    echo "|---|---:|---:|---:|---:|---:|"
     start_server
-    for case in "sample256.txt|spp=1|testSample 256×256" "sample600.txt|spp=4|testSample 600×600, 4 spp"; do
-        IFS='|' read -r scene query label <<< "$case"
+    for case in "sample256.txt|spp=1|testSample 256×256|$DUR" "sample600.txt|spp=4|testSample 600×600, 4 spp|$DUR_HEAVY"; do
+        IFS='|' read -r scene query label dur <<< "$case"
+        rows=()
         for c in 1 2 8 64; do
             : > "$WORK/in"; : > "$WORK/svc"
             for _ in $(seq "$REPS"); do
-                "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$DUR" --json \
+                "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json \
                     | field 'd["renders_per_s"]' >> "$WORK/in"
-                "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$DUR" --json \
+                "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json \
                     | field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' >> "$WORK/svc"
             done
             in=$(median < "$WORK/in"); svc=$(median < "$WORK/svc")
-            printf '| %s | %d | %.1f | %.1f | %.3f |\n' "$label" "$c" "$in" "$svc" "$(echo "$svc / $in" | bc -l)"
+            rows+=("$c $in $svc")
             [ "$c" = 8 ] && [ "$scene" = sample256.txt ] && echo "$svc" > "$WORK/saturation"
+        done
+        # In-process saturation: the best in-process throughput at any concurrency.
+        best=$(printf '%s\n' "${rows[@]}" | awk '{print $2}' | sort -g | tail -1)
+        for row in "${rows[@]}"; do
+            read -r c in svc <<< "$row"
+            printf '| %s | %d | %.1f | %.1f | %.3f | %.3f |\n' "$label" "$c" "$in" "$svc" \
+                "$(echo "$svc / $in" | bc -l)" "$(echo "$svc / $best" | bc -l)"
         done
     done
     stop_server
@@ -98,7 +107,7 @@ overload() {
     sleep 1
     threads=$(proc Threads)
     field '"requests %d, status %s, transport errors %s\n200: %s\n503: %s" % (d["requests"], d["status"], d["errors"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"))' < "$WORK/overload.json" | sed 's/^/    /'
-    echo "    503 without Retry-After: every 503 from /render carries it (tests/service.rs checks the header)"
+    field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
     echo "    server RSS (KiB): before $rss0, every 2 s during:$samples; peak $(proc VmHWM); threads after: $threads"
     stop_server
     echo

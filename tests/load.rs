@@ -102,3 +102,19 @@ fn open_loop_keeps_its_schedule_and_counts_rejections_and_transport_errors() {
     .unwrap();
     assert_eq!(report.errors.get("connect"), Some(&3));
 }
+
+#[test]
+fn a_kept_alive_connection_closed_by_the_server_while_idle_is_replaced_not_counted_as_an_error() {
+    let server = serve(ServiceConfig {
+        idle_timeout: Duration::from_millis(50),
+        ..ServiceConfig::default()
+    });
+    let healthz = format!("http://{}/healthz", server.addr());
+    let report = load::run(&LoadConfig {
+        rate: Some(10.0),
+        ..config(healthz, None, 1, Stop::After(Duration::from_millis(600)))
+    })
+    .unwrap();
+    assert_eq!(report.status.get(&200), Some(&6), "{report}");
+    assert!(report.errors.is_empty(), "{:?}", report.errors);
+}

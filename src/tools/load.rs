@@ -109,6 +109,9 @@ pub enum TransportError {
     /// Not an HTTP/1.x response, or an in-process render failed.
     Protocol,
     Io,
+    /// Closed before the first byte of the response; only ever reported as
+    /// `Closed`, after a retry on a fresh connection.
+    Stale,
 }
 
 impl TransportError {
@@ -116,7 +119,7 @@ impl TransportError {
         match self {
             TransportError::Connect => "connect",
             TransportError::Timeout => "timeout",
-            TransportError::Closed => "closed",
+            TransportError::Closed | TransportError::Stale => "closed",
             TransportError::Protocol => "protocol",
             TransportError::Io => "io",
         }
@@ -142,6 +145,8 @@ struct Sample {
     bytes: u64,
     /// The render's rays (`X-Rays`), 0 if none.
     rays: u64,
+    /// A 503 that did not say when to come back.
+    missing_retry_after: bool,
 }
 
 /// What a run measured.
@@ -153,6 +158,8 @@ pub struct Report {
     /// Requests still in flight when the window closed; like wrk, they are
     /// left out of every other figure.
     pub unfinished: u64,
+    /// 503 answers without a `Retry-After` header.
+    pub missing_retry_after: u64,
     pub requests: u64,
     pub status: BTreeMap<u16, u64>,
     pub errors: BTreeMap<&'static str, u64>,
@@ -265,6 +272,7 @@ impl Report {
             "elapsed_s": self.elapsed.as_secs_f64(),
             "requests": self.requests,
             "unfinished": self.unfinished,
+            "503_without_retry_after": self.missing_retry_after,
             "requests_per_s": self.requests_per_s(),
             "renders": self.renders,
             "renders_per_s": self.renders_per_s(),
@@ -318,6 +326,9 @@ impl fmt::Display for Report {
             .iter()
             .map(|(e, n)| format!("{e}: {n}"))
             .collect();
+        if self.missing_retry_after > 0 {
+            writeln!(f, "503s without Retry-After: {}", self.missing_retry_after)?;
+        }
         writeln!(
             f,
             "errors    {}",
@@ -488,29 +499,32 @@ fn exchange(
         latency: due.elapsed(),
         bytes: 0,
         rays: 0,
+        missing_retry_after: false,
     };
-    if conn.is_none() {
-        let Some(addr) = run.addr else {
+    // A kept-alive connection the server closed while it sat idle fails
+    // before any byte comes back; the server never saw the request, so it
+    // is sent again on a new connection, as HTTP clients do.
+    let mut result = Err(TransportError::Stale);
+    for _attempt in 0..2 {
+        let reused = conn.is_some();
+        if conn.is_none() {
+            match connect(run) {
+                Ok(reader) => *conn = Some(reader),
+                Err(error) => return failed(error),
+            }
+        }
+        let Some(reader) = conn.as_mut() else {
             return failed(TransportError::Connect);
         };
-        match TcpStream::connect_timeout(&addr, run.config.timeout) {
-            Ok(stream) => {
-                let _ = stream.set_nodelay(true);
-                let _ = stream.set_read_timeout(Some(run.config.timeout));
-                let _ = stream.set_write_timeout(Some(run.config.timeout));
-                *conn = Some(BufReader::with_capacity(64 * 1024, stream));
-            }
-            Err(_) => return failed(TransportError::Connect),
+        result = match reader.get_mut().write_all(&run.request) {
+            Ok(()) => read_response(reader, scratch),
+            Err(_) => Err(TransportError::Stale),
+        };
+        match result {
+            Err(TransportError::Stale) if reused => *conn = None,
+            _ => break,
         }
     }
-    let Some(reader) = conn.as_mut() else {
-        return failed(TransportError::Connect);
-    };
-    let result = reader
-        .get_mut()
-        .write_all(&run.request)
-        .map_err(|e| TransportError::from_io(&e))
-        .and_then(|()| read_response(reader, scratch));
     match result {
         Ok(response) => {
             if response.close {
@@ -521,17 +535,32 @@ fn exchange(
                 latency: due.elapsed(),
                 bytes: response.bytes,
                 rays: response.rays,
+                missing_retry_after: response.status == 503 && !response.retry_after,
             }
         }
         Err(error) => {
             *conn = None;
-            failed(error)
+            failed(match error {
+                TransportError::Stale => TransportError::Closed,
+                other => other,
+            })
         }
     }
 }
 
+fn connect(run: &Run) -> Result<BufReader<TcpStream>, TransportError> {
+    let addr = run.addr.ok_or(TransportError::Connect)?;
+    let stream = TcpStream::connect_timeout(&addr, run.config.timeout)
+        .map_err(|_| TransportError::Connect)?;
+    let _ = stream.set_nodelay(true);
+    let _ = stream.set_read_timeout(Some(run.config.timeout));
+    let _ = stream.set_write_timeout(Some(run.config.timeout));
+    Ok(BufReader::with_capacity(64 * 1024, stream))
+}
+
 struct ResponseSummary {
     status: u16,
+    retry_after: bool,
     bytes: u64,
     rays: u64,
     close: bool,
@@ -550,14 +579,17 @@ fn read_response(
         }
     };
     let mut line = Vec::with_capacity(128);
-    let mut bytes = read_line(&mut line)? as u64;
+    let mut bytes = match read_line(&mut line) {
+        Err(TransportError::Closed) => return Err(TransportError::Stale),
+        other => other? as u64,
+    };
     let status = std::str::from_utf8(&line)
         .ok()
         .filter(|l| l.starts_with("HTTP/1."))
         .and_then(|l| l.split(' ').nth(1))
         .and_then(|s| s.parse::<u16>().ok())
         .ok_or(TransportError::Protocol)?;
-    let (mut length, mut rays, mut close) = (None, 0, false);
+    let (mut length, mut rays, mut close, mut retry_after) = (None, 0, false, false);
     loop {
         bytes += read_line(&mut line)? as u64;
         let text = String::from_utf8_lossy(&line);
@@ -573,6 +605,8 @@ fn read_response(
             length = Some(value.parse::<u64>().map_err(|_| TransportError::Protocol)?);
         } else if name.eq_ignore_ascii_case("x-rays") {
             rays = value.parse().unwrap_or(0);
+        } else if name.eq_ignore_ascii_case("retry-after") {
+            retry_after = true;
         } else if name.eq_ignore_ascii_case("connection") {
             close = value.eq_ignore_ascii_case("close");
         }
@@ -591,6 +625,7 @@ fn read_response(
     }
     Ok(ResponseSummary {
         status,
+        retry_after,
         bytes: bytes + body,
         rays,
         close,
@@ -629,12 +664,14 @@ fn render_in_process(run: &Run, due: Instant) -> Sample {
             latency: due.elapsed(),
             bytes: png.len() as u64,
             rays,
+            missing_retry_after: false,
         },
         None => Sample {
             outcome: Outcome::Error(TransportError::Protocol),
             latency: due.elapsed(),
             bytes: 0,
             rays: 0,
+            missing_retry_after: false,
         },
     }
 }
@@ -644,6 +681,7 @@ fn summarize(mut samples: Vec<Sample>, elapsed: Duration) -> Report {
     let mut report = Report {
         elapsed,
         unfinished: 0,
+        missing_retry_after: samples.iter().filter(|s| s.missing_retry_after).count() as u64,
         requests: samples.len() as u64,
         status: BTreeMap::new(),
         errors: BTreeMap::new(),
