@@ -11,3 +11,5 @@ pub mod limits;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod service;
+pub mod tools;

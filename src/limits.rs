@@ -20,3 +20,48 @@ pub const MAX_SPP: u32 = 1_024;
 pub const BROWSER_MIN_WEIGHT: f64 = 0.3;
 /// The adaptive cut-off: a ray whose weight is below half an 8-bit level cannot change the output.
 pub const ADAPTIVE_MIN_WEIGHT: f64 = 1.0 / 512.0;
+
+// ---- The render service (`voxtrace serve`); each has a flag of the same name. ----
+
+/// Where the service listens: loopback only, unless told otherwise.
+pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
+/// Connection handler threads. Each serves one connection at a time, so this
+/// is also the number of clients served at once; the rest wait in the backlog.
+pub const DEFAULT_WORKERS: usize = 128;
+/// Accepted connections waiting for a handler; past this a new connection is
+/// answered 503 at once and closed.
+pub const DEFAULT_BACKLOG: usize = 1_024;
+/// Renders running at once on the render pool. Two keep every core busy
+/// while one render parses or encodes outside the pool.
+pub const DEFAULT_CONCURRENT_RENDERS: usize = 2;
+/// Renders waiting for a slot; past this `POST /render` is answered 503.
+pub const DEFAULT_QUEUE: usize = 64;
+/// Largest request body (scene text) in bytes.
+pub const DEFAULT_MAX_BODY: u64 = 8 * 1024 * 1024;
+/// Largest request head (request line and headers) in bytes; larger is 431.
+pub const MAX_HEAD_BYTES: usize = 16 * 1024;
+/// Most header lines in one request; more is 431.
+pub const MAX_HEADERS: usize = 64;
+/// Largest image (width × height) the service renders; larger is 422.
+pub const DEFAULT_MAX_PIXELS: u64 = 4096 * 4096;
+/// Largest number of camera samples (width × height × spp) per request.
+pub const DEFAULT_MAX_SAMPLES: u64 = 64 * 1024 * 1024;
+/// Most spheres in one scene the service accepts.
+pub const DEFAULT_MAX_SERVICE_SPHERES: usize = 1_000_000;
+/// Time budget of one render, queueing included; past it the render is
+/// abandoned and the request answered 422 (the scene costs too much).
+pub const DEFAULT_RENDER_TIMEOUT_MS: u64 = 30_000;
+/// How long a kept-alive connection may sit idle between requests.
+pub const DEFAULT_IDLE_TIMEOUT_MS: u64 = 5_000;
+/// Time from a request's first byte to the end of its head; past it, 408.
+pub const DEFAULT_HEAD_TIMEOUT_MS: u64 = 10_000;
+/// Time to receive a whole request body; past it, 408.
+pub const DEFAULT_BODY_TIMEOUT_MS: u64 = 30_000;
+/// Time a single write to a client may block.
+pub const DEFAULT_WRITE_TIMEOUT_MS: u64 = 10_000;
+/// When connections are waiting for a handler, a request head (and an idle
+/// connection) gets only this long, so slow or idle clients cannot hold every
+/// handler while others wait.
+pub const PRESSURED_HEAD_TIMEOUT_MS: u64 = 1_000;
+/// What `Retry-After` tells a client turned away by a full queue, in seconds.
+pub const RETRY_AFTER_S: u32 = 1;

@@ -1,7 +1,9 @@
 //! The command line: argument parsing, dispatch, and exit codes.
 //! Each subcommand's arguments live next to the code that runs it.
 
+mod load;
 mod render;
+mod serve;
 
 use clap::{Parser, Subcommand};
 use std::fmt;
@@ -22,6 +24,10 @@ struct Cli {
 enum Command {
     /// Render a scene file to PPM or PNG.
     Render(render::RenderArgs),
+    /// Serve renders over HTTP: POST a scene to /render, get a PNG.
+    Serve(serve::ServeArgs),
+    /// Load-test the render service (closed or open loop) and report throughput and latency.
+    Load(load::LoadArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -68,6 +74,8 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Serve(args) => serve::run(args),
+        Command::Load(args) => load::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,179 @@
+#!/usr/bin/env bash
+# Benchmarks of `voxtrace serve`, measured with `voxtrace load` (and Debian's
+# wrk for comparison). Prints markdown tables.
+#
+#   cargo build --release
+#   bench/service.sh [throughput|overload|slowloris|fuzz|wrk|all]
+#
+# Environment: DUR (per run, default 5s; DUR_HEAVY 15s for the heavy scene), REPS (interleaved repetitions,
+# default 3), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
+# Needs python3 (slowloris, fuzz, JSON) and wrk (apt-get install -y wrk).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BIN=${VOXTRACE_BIN:-target/release/voxtrace}
+DUR=${DUR:-5s}
+DUR_HEAVY=${DUR_HEAVY:-15s}
+REPS=${REPS:-3}
+FUZZ_COUNT=${FUZZ_COUNT:-100000}
+WORK=$(mktemp -d)
+SERVER=
+cleanup() {
+    [ -n "$SERVER" ] && kill "$SERVER" 2>/dev/null || true
+    rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+# testSample at 256x256 (the standard case) and at 600x600 with 4 samples (heavy).
+sed 's/RES 600 600/RES 256 256/' scenes/testSample.txt > "$WORK/sample256.txt"
+cp scenes/testSample.txt "$WORK/sample600.txt"
+
+start_server() {
+    "$BIN" serve --addr 127.0.0.1:0 "$@" > "$WORK/serve.out" 2> "$WORK/serve.err" &
+    SERVER=$!
+    for _ in $(seq 100); do
+        ADDR=$(sed -n 's|^listening on http://||p' "$WORK/serve.out")
+        [ -n "$ADDR" ] && return
+        sleep 0.05
+    done
+    echo "the server did not start" >&2
+    exit 1
+}
+stop_server() {
+    kill "$SERVER"
+    wait "$SERVER" 2>/dev/null || true
+    SERVER=
+}
+# field EXPR: evaluates a Python expression over the JSON object `d` on stdin.
+field() { python3 -c "import json,sys; d=json.load(sys.stdin); print($1)"; }
+median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
+proc() { awk -v k="$1:" '$1 == k {print $2}' "/proc/$SERVER/status"; }
+metric() { curl -s "http://$ADDR/metrics" | awk -v m="$1" '$1 == m {print $2}'; }
+
+throughput() {
+    echo "### Throughput: service vs in-process (renders/s, median of $REPS runs of $DUR ($DUR_HEAVY heavy), interleaved)"
+    echo
+    echo "| scene | concurrency | in-process | service | service / in-process | service / in-process saturation |"
+    echo "|---|---:|---:|---:|---:|---:|"
+    start_server
+    for case in "sample256.txt|spp=1|testSample 256×256|$DUR" "sample600.txt|spp=4|testSample 600×600, 4 spp|$DUR_HEAVY"; do
+        IFS='|' read -r scene query label dur <<< "$case"
+        rows=()
+        for c in 1 2 8 64; do
+            : > "$WORK/in"; : > "$WORK/svc"
+            for _ in $(seq "$REPS"); do
+                "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json \
+                    | field 'd["renders_per_s"]' >> "$WORK/in"
+                "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json \
+                    | field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' >> "$WORK/svc"
+            done
+            in=$(median < "$WORK/in"); svc=$(median < "$WORK/svc")
+            rows+=("$c $in $svc")
+            [ "$c" = 8 ] && [ "$scene" = sample256.txt ] && echo "$svc" > "$WORK/saturation"
+        done
+        # In-process saturation: the best in-process throughput at any concurrency.
+        best=$(printf '%s\n' "${rows[@]}" | awk '{print $2}' | sort -g | tail -1)
+        for row in "${rows[@]}"; do
+            read -r c in svc <<< "$row"
+            printf '| %s | %d | %.1f | %.1f | %.3f | %.3f |\n' "$label" "$c" "$in" "$svc" \
+                "$(echo "$svc / $in" | bc -l)" "$(echo "$svc / $best" | bc -l)"
+        done
+    done
+    stop_server
+    echo
+}
+
+overload() {
+    [ -f "$WORK/saturation" ] || {
+        start_server
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 8 -d "$DUR" --json \
+            | field 'd["renders_per_s"]' > "$WORK/saturation"
+        stop_server
+    }
+    sat=$(cat "$WORK/saturation")
+    rate=$(echo "4 * $sat" | bc -l)
+    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 20 s, testSample 256×256"
+    echo
+    start_server --workers 512
+    sleep 0.3
+    rss0=$(proc VmRSS)
+    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 20s --rate "$rate" --json > "$WORK/overload.json" &
+    LOAD=$!
+    samples=""
+    for _ in $(seq 10); do
+        sleep 2
+        samples="$samples $(proc VmRSS)"
+    done
+    wait "$LOAD"
+    sleep 1
+    threads=$(proc Threads)
+    field '"requests %d, status %s, transport errors %s\n200: %s\n503: %s" % (d["requests"], d["status"], d["errors"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"))' < "$WORK/overload.json" | sed 's/^/    /'
+    field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
+    echo "    server RSS (KiB): before $rss0, every 2 s during:$samples; peak $(proc VmHWM); threads after: $threads"
+    stop_server
+    echo
+}
+
+slowloris() {
+    echo "### Slow clients: 500 connections trickling their heads for 20 s, one normal client at 2 renders/s"
+    echo
+    start_server
+    python3 bench/slowloris.py 127.0.0.1 "${ADDR##*:}" 500 20 2 > "$WORK/slow.txt" &
+    SLOW=$!
+    sleep 3
+    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 4 -d 12s --rate 2 --json > "$WORK/normal.json"
+    wait "$SLOW"
+    sed 's/^/    /' "$WORK/slow.txt"
+    field '"    normal client: status %s, errors %s, latency ms %s" % (d["status"], d["errors"], d["latency_ms"])' < "$WORK/normal.json"
+    stop_server
+    echo
+}
+
+fuzz() {
+    echo "### $FUZZ_COUNT malformed and random requests"
+    echo
+    start_server
+    threads0=$(proc Threads)
+    python3 bench/fuzz.py 127.0.0.1 "${ADDR##*:}" "$FUZZ_COUNT" 8 1 | sed 's/^/    /'
+    sleep 1.5
+    echo "    server alive: $(kill -0 "$SERVER" && echo yes); threads before $threads0, after $(proc Threads)"
+    echo "    /healthz: $(curl -s "http://$ADDR/healthz"); open connections after: $(metric voxtrace_open_connections); panics: $(curl -s "http://$ADDR/metrics" | grep -c 'route="panic"' || true)"
+    stop_server
+    echo
+}
+
+wrk_compare() {
+    echo "### voxtrace load vs wrk (req/s, median of $REPS × $DUR, interleaved)"
+    echo
+    printf 'wrk.method = "POST"\nwrk.body = io.open("%s"):read("*a")\nwrk.headers["Content-Type"] = "text/plain"\n' "$WORK/sample256.txt" > "$WORK/post.lua"
+    echo "| target | connections | wrk | voxtrace load | load / wrk |"
+    echo "|---|---:|---:|---:|---:|"
+    start_server
+    for case in "render|8" "healthz|8"; do
+        IFS='|' read -r path c <<< "$case"
+        : > "$WORK/wrk"; : > "$WORK/load"
+        for _ in $(seq "$REPS"); do
+            if [ "$path" = render ]; then
+                wrk -t2 -c"$c" -d"$DUR" -s "$WORK/post.lua" "http://$ADDR/render" | awk '/Requests\/sec/ {print $2}' >> "$WORK/wrk"
+                "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c "$c" -d "$DUR" --json | field 'd["requests_per_s"]' >> "$WORK/load"
+            else
+                wrk -t2 -c"$c" -d"$DUR" "http://$ADDR/healthz" | awk '/Requests\/sec/ {print $2}' >> "$WORK/wrk"
+                "$BIN" load --url "http://$ADDR/healthz" -c "$c" -d "$DUR" --json | field 'd["requests_per_s"]' >> "$WORK/load"
+            fi
+        done
+        w=$(median < "$WORK/wrk"); l=$(median < "$WORK/load")
+        printf '| /%s | %d | %.1f | %.1f | %.3f |\n' "$path" "$c" "$w" "$l" "$(echo "$l / $w" | bc -l)"
+    done
+    stop_server
+    echo
+}
+
+what=${1:-all}
+case "$what" in
+    throughput) throughput ;;
+    overload) overload ;;
+    slowloris) slowloris ;;
+    fuzz) fuzz ;;
+    wrk) wrk_compare ;;
+    all) throughput; overload; slowloris; fuzz; wrk_compare ;;
+    *) echo "usage: $0 [throughput|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
+esac

@@ -1,0 +1,97 @@
+//! `voxtrace serve`.
+
+use super::CliError;
+use crate::limits;
+use crate::service::{Server, ServiceConfig};
+use std::io::Write;
+use std::time::Duration;
+
+#[derive(clap::Args)]
+pub struct ServeArgs {
+    /// Address to listen on; port 0 picks a free port.
+    #[arg(long, default_value = limits::DEFAULT_ADDR)]
+    addr: String,
+    /// Connection handler threads (clients served at once).
+    #[arg(long, default_value_t = limits::DEFAULT_WORKERS)]
+    workers: usize,
+    /// Accepted connections that may wait for a handler before new ones get 503.
+    #[arg(long, default_value_t = limits::DEFAULT_BACKLOG)]
+    backlog: usize,
+    /// Renders running at once.
+    #[arg(long, default_value_t = limits::DEFAULT_CONCURRENT_RENDERS)]
+    renders: usize,
+    /// Renders that may wait for a slot before new ones get 503.
+    #[arg(long, default_value_t = limits::DEFAULT_QUEUE)]
+    queue: usize,
+    /// Largest request body in bytes (larger: 413).
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_BODY)]
+    max_body: u64,
+    /// Largest image, width × height (larger: 422).
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_PIXELS)]
+    max_pixels: u64,
+    /// Most camera samples per render, width × height × spp (more: 422).
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_SAMPLES)]
+    max_samples: u64,
+    /// Most spheres per scene (more: 422).
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_SERVICE_SPHERES)]
+    max_spheres: usize,
+    /// Time budget of one render in milliseconds, also the longest wait in the queue.
+    #[arg(long, default_value_t = limits::DEFAULT_RENDER_TIMEOUT_MS)]
+    render_timeout_ms: u64,
+    /// How long a kept-alive connection may idle between requests, in milliseconds.
+    #[arg(long, default_value_t = limits::DEFAULT_IDLE_TIMEOUT_MS)]
+    idle_timeout_ms: u64,
+    /// Time to receive a request head, in milliseconds (then 408).
+    #[arg(long, default_value_t = limits::DEFAULT_HEAD_TIMEOUT_MS)]
+    head_timeout_ms: u64,
+    /// Time to receive a request body, in milliseconds (then 408).
+    #[arg(long, default_value_t = limits::DEFAULT_BODY_TIMEOUT_MS)]
+    body_timeout_ms: u64,
+    /// Longest a single write to a client may block, in milliseconds.
+    #[arg(long, default_value_t = limits::DEFAULT_WRITE_TIMEOUT_MS)]
+    write_timeout_ms: u64,
+    /// Render threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+impl ServeArgs {
+    fn config(&self) -> ServiceConfig {
+        let ms = Duration::from_millis;
+        ServiceConfig {
+            addr: self.addr.clone(),
+            workers: self.workers,
+            backlog: self.backlog,
+            concurrent_renders: self.renders,
+            queue: self.queue,
+            max_body: self.max_body,
+            max_pixels: self.max_pixels,
+            max_samples: self.max_samples,
+            max_spheres: self.max_spheres,
+            render_timeout: ms(self.render_timeout_ms),
+            idle_timeout: ms(self.idle_timeout_ms),
+            head_timeout: ms(self.head_timeout_ms),
+            body_timeout: ms(self.body_timeout_ms),
+            write_timeout: ms(self.write_timeout_ms),
+            threads: self.threads,
+        }
+    }
+}
+
+pub fn run(args: ServeArgs) -> Result<(), CliError> {
+    let server = Server::bind(args.config()).map_err(|e| match e.kind() {
+        std::io::ErrorKind::InvalidInput => CliError::Usage(e.to_string()),
+        _ => CliError::Failed(format!("cannot listen on {}: {e}", args.addr)),
+    })?;
+    let addr = server
+        .local_addr()
+        .map_err(|e| CliError::Failed(e.to_string()))?;
+    let mut stdout = std::io::stdout().lock();
+    writeln!(stdout, "listening on http://{addr}")
+        .and_then(|()| stdout.flush())
+        .map_err(|e| CliError::Failed(format!("cannot write to stdout: {e}")))?;
+    drop(stdout);
+    server
+        .run()
+        .map_err(|e| CliError::Failed(format!("the service stopped: {e}")))
+}

@@ -1,0 +1,164 @@
+//! One client connection, from accept to close: requests in turn on the
+//! kept-alive connection, each read, answered and counted.
+
+use super::error::ApiError;
+use super::http::{self, BodyFraming, Connection, ReadError, RequestHead, Response};
+use super::routes;
+use super::State;
+use std::io::Write;
+use std::net::TcpStream;
+use std::time::Instant;
+
+/// How one request ended.
+enum Step {
+    /// Answer with this; keep the connection only if `keep` (and the client wants to).
+    Reply { response: Response, keep: bool },
+    /// The client left; close without answering.
+    Gone,
+}
+
+pub fn serve(state: &State, stream: TcpStream, accepted: Instant) {
+    let _ = stream.set_nodelay(true);
+    let _ = stream.set_write_timeout(Some(state.config.write_timeout));
+    let mut conn = Connection::new(stream, accepted);
+    let pressure = || state.connections_waiting() || state.stopping();
+    loop {
+        let head = match conn.read_head(&state.config.timeouts(), &pressure) {
+            Ok(head) => head,
+            Err(ReadError::Closed | ReadError::Io) => return,
+            Err(error) => {
+                let api = match error {
+                    ReadError::Stalled => {
+                        ApiError::new(408, "request_timeout", "the request did not arrive in time")
+                    }
+                    ReadError::HeadTooLarge => ApiError::new(
+                        431,
+                        "head_too_large",
+                        format!(
+                            "the request head exceeds {} bytes or {} header lines",
+                            crate::limits::MAX_HEAD_BYTES,
+                            crate::limits::MAX_HEADERS
+                        ),
+                    ),
+                    ReadError::Malformed(why) => ApiError::new(400, "bad_request", why),
+                    ReadError::Closed | ReadError::Io => unreachable!("handled above"),
+                };
+                state.metrics.request("other", api.status);
+                let _ = api
+                    .into_response(false)
+                    .write_to(&mut conn.stream, false, false);
+                return;
+            }
+        };
+        let route = routes::label(&head.path);
+        match handle(state, &mut conn, &head) {
+            Step::Gone => {
+                // 499: nginx's code for "client closed the request".
+                state.metrics.request(route, 499);
+                return;
+            }
+            Step::Reply { response, keep } => {
+                state.metrics.request(route, response.status);
+                let keep = keep && head.wants_keep_alive() && !state.stopping();
+                let written = response.write_to(&mut conn.stream, head.method == "HEAD", keep);
+                if written.is_err() || !keep {
+                    return;
+                }
+                conn.request_done();
+            }
+        }
+    }
+}
+
+/// Reads the body the head announces, then routes the request.
+fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
+    let json = head.accepts_json();
+    let fail = |error: ApiError, keep: bool| Step::Reply {
+        response: error.into_response(json),
+        keep,
+    };
+    let length = match head.body_framing() {
+        BodyFraming::Length(n) => n,
+        BodyFraming::Absent if head.method == "POST" => {
+            return fail(
+                ApiError::new(
+                    411,
+                    "length_required",
+                    "a POST needs a Content-Length header",
+                ),
+                true,
+            )
+        }
+        BodyFraming::Absent => 0,
+        // The body's end cannot be found, so the connection cannot be reused.
+        BodyFraming::Encoded => {
+            return fail(
+                ApiError::new(
+                    411,
+                    "length_required",
+                    "Transfer-Encoding is not supported; send the body with a Content-Length",
+                ),
+                false,
+            )
+        }
+        BodyFraming::Invalid => {
+            return fail(
+                ApiError::new(
+                    400,
+                    "bad_request",
+                    "Content-Length is not a single whole number",
+                ),
+                false,
+            )
+        }
+    };
+    let max_body = state.config.max_body;
+    if length > max_body {
+        // Decided from the header alone: the body is never read, so the
+        // connection cannot be reused.
+        return fail(
+            ApiError::new(
+                413,
+                "body_too_large",
+                format!("the body has {length} bytes; at most {max_body} are accepted"),
+            ),
+            false,
+        );
+    }
+    let wants_continue = length > 0 && head.expects_continue() && !conn.has_pending();
+    if wants_continue && conn.stream.write_all(http::CONTINUE).is_err() {
+        return Step::Gone;
+    }
+    let body = match conn.read_body(length as usize, state.config.body_timeout) {
+        Ok(body) => body,
+        Err(ReadError::Stalled) => {
+            return fail(
+                ApiError::new(
+                    408,
+                    "request_timeout",
+                    "the request body did not arrive in time",
+                ),
+                false,
+            )
+        }
+        Err(_) => return Step::Gone,
+    };
+    if head.minor_version >= 1 && head.header("host").is_none() {
+        return fail(
+            ApiError::new(
+                400,
+                "bad_request",
+                "an HTTP/1.1 request needs a Host header",
+            ),
+            true,
+        );
+    }
+    match routes::dispatch(state, conn, head, &body) {
+        Ok(Some(response)) => Step::Reply {
+            response,
+            keep: true,
+        },
+        Ok(None) => Step::Gone,
+        Err(error) => fail(error, true),
+    }
+}

@@ -1,0 +1,460 @@
+//! HTTP/1.1 on a `TcpStream`: reading a request head and body under
+//! deadlines, and writing a response. Framing only; what a request means is
+//! decided in `routes`.
+
+use crate::limits;
+use std::fmt::Write as _;
+use std::io::{self, Read, Write};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+
+/// A socket read never blocks longer than this, so a handler notices a
+/// deadline, pressure from waiting connections, or shutdown in good time.
+const READ_SLICE: Duration = Duration::from_millis(250);
+/// Bytes asked of the socket per read.
+const READ_CHUNK: usize = 4096;
+
+/// How long each phase of a request may take.
+#[derive(Clone, Copy, Debug)]
+pub struct Timeouts {
+    /// Between requests on a kept-alive connection.
+    pub idle: Duration,
+    /// From the first byte of a request to the end of its head.
+    pub head: Duration,
+    /// The head (and idle) budget while other connections wait for a handler.
+    pub pressured: Duration,
+}
+
+/// Why no request could be read.
+#[derive(Debug)]
+pub enum ReadError {
+    /// The client closed the connection, went idle, or the server is
+    /// stopping, between requests: close without a word.
+    Closed,
+    /// The client started a request and stalled (408).
+    Stalled,
+    /// The head is larger than [`limits::MAX_HEAD_BYTES`] or has more than
+    /// [`limits::MAX_HEADERS`] lines (431).
+    HeadTooLarge,
+    /// Not HTTP/1.x (400).
+    Malformed(String),
+    /// The connection failed (reset, or a socket error).
+    Io,
+}
+
+/// The request line and headers. Header names are lower case.
+#[derive(Debug)]
+pub struct RequestHead {
+    pub method: String,
+    /// The path without the query, e.g. `/render`.
+    pub path: String,
+    /// What follows `?`, without it; empty if none.
+    pub query: String,
+    /// 0 for HTTP/1.0, 1 for HTTP/1.1.
+    pub minor_version: u8,
+    pub headers: Vec<(String, String)>,
+}
+
+/// How the request says its body is framed.
+#[derive(Debug, PartialEq, Eq)]
+pub enum BodyFraming {
+    /// No body, or `Content-Length` bytes.
+    Length(u64),
+    /// No `Content-Length` (and no body).
+    Absent,
+    /// `Transfer-Encoding` of any kind: refused with 411.
+    Encoded,
+    /// A `Content-Length` that is not one decimal number (400).
+    Invalid,
+}
+
+impl RequestHead {
+    /// The value of the first header named `name` (lower case).
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// Whether a `Connection` header lists `token`.
+    fn connection_has(&self, token: &str) -> bool {
+        self.headers
+            .iter()
+            .filter(|(n, _)| n == "connection")
+            .flat_map(|(_, v)| v.split(','))
+            .any(|t| t.trim().eq_ignore_ascii_case(token))
+    }
+
+    /// HTTP/1.1 keeps the connection unless told `close`; HTTP/1.0 closes
+    /// it unless told `keep-alive`.
+    pub fn wants_keep_alive(&self) -> bool {
+        if self.minor_version >= 1 {
+            !self.connection_has("close")
+        } else {
+            self.connection_has("keep-alive")
+        }
+    }
+
+    pub fn expects_continue(&self) -> bool {
+        self.header("expect")
+            .is_some_and(|v| v.trim().eq_ignore_ascii_case("100-continue"))
+    }
+
+    /// Whether the client takes a JSON error body.
+    pub fn accepts_json(&self) -> bool {
+        self.header("accept")
+            .is_some_and(|v| v.to_ascii_lowercase().contains("application/json"))
+    }
+
+    pub fn body_framing(&self) -> BodyFraming {
+        if self.header("transfer-encoding").is_some() {
+            return BodyFraming::Encoded;
+        }
+        let mut lengths = self
+            .headers
+            .iter()
+            .filter(|(n, _)| n == "content-length")
+            .map(|(_, v)| v.trim());
+        let Some(first) = lengths.next() else {
+            return BodyFraming::Absent;
+        };
+        // Repeated headers must agree (RFC 9112 §6.3); a list or a sign is invalid.
+        let parsed = (!first.is_empty() && first.bytes().all(|b| b.is_ascii_digit()))
+            .then(|| first.parse::<u64>().ok())
+            .flatten();
+        match parsed {
+            Some(n) if lengths.all(|other| other == first) => BodyFraming::Length(n),
+            _ => BodyFraming::Invalid,
+        }
+    }
+}
+
+/// A client connection and the bytes received on it but not yet consumed
+/// (the start of a body, or a pipelined next request). The buffer never
+/// holds more than a head's worth plus one read.
+pub struct Connection {
+    pub stream: TcpStream,
+    pending: Vec<u8>,
+    /// Since when the connection has been ready for its next request: its
+    /// accept, then the end of each response.
+    ready_since: Instant,
+}
+
+impl Connection {
+    pub fn new(stream: TcpStream, accepted: Instant) -> Self {
+        Connection {
+            stream,
+            pending: Vec::new(),
+            ready_since: accepted,
+        }
+    }
+
+    /// Marks the end of a response: the idle clock starts again.
+    pub fn request_done(&mut self) {
+        self.ready_since = Instant::now();
+    }
+
+    /// Reads the next request head. `pressure()` is asked between reads:
+    /// while it holds, the request must be complete within
+    /// `timeouts.pressured` of the connection becoming ready (its accept, or
+    /// the previous response), so clients that trickle their heads or sit
+    /// idle cannot hold the handlers while others wait. What already arrived
+    /// is always read once before that judgement.
+    pub fn read_head(
+        &mut self,
+        timeouts: &Timeouts,
+        pressure: &dyn Fn() -> bool,
+    ) -> Result<RequestHead, ReadError> {
+        let mut head_started = (!self.pending.is_empty()).then(Instant::now);
+        let mut read_once = false;
+        loop {
+            if !self.pending.is_empty() {
+                if let Some(head) = self.parse_pending()? {
+                    return Ok(head);
+                }
+            }
+            let mut deadline = match head_started {
+                None => self.ready_since + timeouts.idle,
+                Some(t) => t + timeouts.head,
+            };
+            if pressure() {
+                deadline = deadline.min(self.ready_since + timeouts.pressured);
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() && read_once {
+                return Err(match head_started {
+                    None => ReadError::Closed,
+                    Some(_) => ReadError::Stalled,
+                });
+            }
+            read_once = true;
+            match self.read_some(left.min(READ_SLICE)) {
+                Ok(0) => return Err(ReadError::Closed),
+                Ok(_) => {
+                    head_started.get_or_insert_with(Instant::now);
+                }
+                Err(e) if is_timeout(&e) => {}
+                Err(_) => return Err(ReadError::Io),
+            }
+        }
+    }
+
+    /// Parses the pending bytes: a whole head (consumed), `None` if more
+    /// bytes are needed, or why they can never make a head.
+    fn parse_pending(&mut self) -> Result<Option<RequestHead>, ReadError> {
+        let mut headers = [httparse::EMPTY_HEADER; limits::MAX_HEADERS];
+        let mut request = httparse::Request::new(&mut headers);
+        match request.parse(&self.pending) {
+            Ok(httparse::Status::Complete(len)) if len > limits::MAX_HEAD_BYTES => {
+                Err(ReadError::HeadTooLarge)
+            }
+            Ok(httparse::Status::Complete(len)) => {
+                let head = to_head(&request);
+                self.pending.drain(..len);
+                Ok(Some(head))
+            }
+            Ok(httparse::Status::Partial) if self.pending.len() > limits::MAX_HEAD_BYTES => {
+                Err(ReadError::HeadTooLarge)
+            }
+            Ok(httparse::Status::Partial) => Ok(None),
+            Err(httparse::Error::TooManyHeaders) => Err(ReadError::HeadTooLarge),
+            Err(e) => Err(ReadError::Malformed(format!("malformed request head: {e}"))),
+        }
+    }
+
+    /// Reads exactly `len` body bytes within `timeout`.
+    pub fn read_body(&mut self, len: usize, timeout: Duration) -> Result<Vec<u8>, ReadError> {
+        let deadline = Instant::now() + timeout;
+        let from_pending = len.min(self.pending.len());
+        let mut body: Vec<u8> = self.pending.drain(..from_pending).collect();
+        body.reserve_exact(len - body.len());
+        let mut chunk = [0u8; READ_CHUNK * 4];
+        while body.len() < len {
+            let Some(left) = deadline.checked_duration_since(Instant::now()) else {
+                return Err(ReadError::Stalled);
+            };
+            self.stream
+                .set_read_timeout(Some(left.min(READ_SLICE).max(Duration::from_millis(1))))
+                .map_err(|_| ReadError::Io)?;
+            let want = (len - body.len()).min(chunk.len());
+            match self.stream.read(&mut chunk[..want]) {
+                Ok(0) => return Err(ReadError::Closed),
+                Ok(n) => body.extend_from_slice(&chunk[..n]),
+                Err(e) if is_timeout(&e) => {}
+                Err(_) => return Err(ReadError::Io),
+            }
+        }
+        Ok(body)
+    }
+
+    /// Whether body bytes have already arrived (then `100 Continue` is moot).
+    pub fn has_pending(&self) -> bool {
+        !self.pending.is_empty()
+    }
+
+    fn read_some(&mut self, timeout: Duration) -> io::Result<usize> {
+        self.stream
+            .set_read_timeout(Some(timeout.max(Duration::from_millis(1))))?;
+        let mut chunk = [0u8; READ_CHUNK];
+        let n = self.stream.read(&mut chunk)?;
+        self.pending.extend_from_slice(&chunk[..n]);
+        Ok(n)
+    }
+
+    /// Whether the client has closed its end (or reset it). Pipelined bytes
+    /// or nothing to read mean it is still there.
+    pub fn peer_closed(&self) -> bool {
+        if self.stream.set_nonblocking(true).is_err() {
+            return false;
+        }
+        let mut probe = [0u8; 1];
+        let closed = match self.stream.peek(&mut probe) {
+            Ok(0) => true,
+            Ok(_) => false,
+            Err(e) => {
+                e.kind() != io::ErrorKind::WouldBlock && e.kind() != io::ErrorKind::Interrupted
+            }
+        };
+        let _ = self.stream.set_nonblocking(false);
+        closed
+    }
+}
+
+fn is_timeout(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted
+    )
+}
+
+fn to_head(request: &httparse::Request) -> RequestHead {
+    let target = request.path.unwrap_or("/");
+    // The absolute form (`http://host/path`) names the same resource as its path.
+    let target = match target.split_once("://") {
+        Some((_, rest)) => rest.find('/').map_or("/", |i| &rest[i..]),
+        None => target,
+    };
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
+    RequestHead {
+        method: request.method.unwrap_or("").to_owned(),
+        path: path.to_owned(),
+        query: query.to_owned(),
+        minor_version: request.version.unwrap_or(1),
+        headers: request
+            .headers
+            .iter()
+            .map(|h| {
+                (
+                    h.name.to_ascii_lowercase(),
+                    String::from_utf8_lossy(h.value).into_owned(),
+                )
+            })
+            .collect(),
+    }
+}
+
+/// A response ready to be written: status, headers, and the whole body.
+#[derive(Debug)]
+pub struct Response {
+    pub status: u16,
+    pub headers: Vec<(&'static str, String)>,
+    pub body: Vec<u8>,
+}
+
+impl Response {
+    pub fn new(status: u16, content_type: &str, body: impl Into<Vec<u8>>) -> Self {
+        Response {
+            status,
+            headers: vec![("Content-Type", content_type.to_owned())],
+            body: body.into(),
+        }
+    }
+
+    pub fn with_header(mut self, name: &'static str, value: impl Into<String>) -> Self {
+        self.headers.push((name, value.into()));
+        self
+    }
+
+    /// The whole response as one buffer, so it leaves in one write. A HEAD
+    /// response has the headers (Content-Length included) without the body.
+    pub fn to_bytes(&self, head_only: bool, keep_alive: bool) -> Vec<u8> {
+        let mut head = format!("HTTP/1.1 {} {}\r\n", self.status, reason(self.status));
+        for (name, value) in &self.headers {
+            let _ = write!(head, "{name}: {value}\r\n");
+        }
+        let _ = write!(head, "Content-Length: {}\r\n", self.body.len());
+        head.push_str(if keep_alive {
+            "Connection: keep-alive\r\n\r\n"
+        } else {
+            "Connection: close\r\n\r\n"
+        });
+        let mut out = head.into_bytes();
+        if !head_only {
+            out.extend_from_slice(&self.body);
+        }
+        out
+    }
+
+    pub fn write_to(
+        &self,
+        stream: &mut TcpStream,
+        head_only: bool,
+        keep_alive: bool,
+    ) -> io::Result<()> {
+        stream.write_all(&self.to_bytes(head_only, keep_alive))?;
+        stream.flush()
+    }
+}
+
+/// The interim response that tells a client to send the body it announced.
+pub const CONTINUE: &[u8] = b"HTTP/1.1 100 Continue\r\n\r\n";
+
+pub fn reason(status: u16) -> &'static str {
+    match status {
+        100 => "Continue",
+        200 => "OK",
+        400 => "Bad Request",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        408 => "Request Timeout",
+        411 => "Length Required",
+        413 => "Content Too Large",
+        422 => "Unprocessable Content",
+        431 => "Request Header Fields Too Large",
+        500 => "Internal Server Error",
+        503 => "Service Unavailable",
+        505 => "HTTP Version Not Supported",
+        _ => "Unknown",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn head(raw: &str) -> RequestHead {
+        let mut headers = [httparse::EMPTY_HEADER; limits::MAX_HEADERS];
+        let mut request = httparse::Request::new(&mut headers);
+        assert!(request.parse(raw.as_bytes()).unwrap().is_complete());
+        to_head(&request)
+    }
+
+    #[test]
+    fn splits_path_and_query_and_lowercases_names() {
+        let h =
+            head("POST /render?format=ppm&spp=2 HTTP/1.1\r\nHost: x\r\nContent-Length: 12\r\n\r\n");
+        assert_eq!(
+            (h.method.as_str(), h.path.as_str(), h.query.as_str()),
+            ("POST", "/render", "format=ppm&spp=2")
+        );
+        assert_eq!(h.header("content-length"), Some("12"));
+        assert_eq!(h.body_framing(), BodyFraming::Length(12));
+        let h = head("GET http://example.org/healthz HTTP/1.1\r\n\r\n");
+        assert_eq!(h.path, "/healthz");
+    }
+
+    #[test]
+    fn keep_alive_follows_the_version_and_connection_tokens() {
+        assert!(head("GET / HTTP/1.1\r\n\r\n").wants_keep_alive());
+        assert!(!head("GET / HTTP/1.1\r\nConnection: Close\r\n\r\n").wants_keep_alive());
+        assert!(!head("GET / HTTP/1.0\r\n\r\n").wants_keep_alive());
+        assert!(head("GET / HTTP/1.0\r\nConnection: foo, keep-alive\r\n\r\n").wants_keep_alive());
+    }
+
+    #[test]
+    fn body_framing_rejects_what_it_cannot_delimit() {
+        let framing = |h: &str| head(&format!("POST / HTTP/1.1\r\n{h}\r\n")).body_framing();
+        assert_eq!(framing(""), BodyFraming::Absent);
+        assert_eq!(
+            framing("Transfer-Encoding: chunked\r\n"),
+            BodyFraming::Encoded
+        );
+        assert_eq!(framing("Content-Length: -1\r\n"), BodyFraming::Invalid);
+        assert_eq!(framing("Content-Length: 1, 2\r\n"), BodyFraming::Invalid);
+        assert_eq!(
+            framing("Content-Length: 5\r\nContent-Length: 6\r\n"),
+            BodyFraming::Invalid
+        );
+        assert_eq!(
+            framing("Content-Length: 5\r\nContent-Length: 5\r\n"),
+            BodyFraming::Length(5)
+        );
+        assert_eq!(
+            framing("Content-Length: 99999999999999999999999\r\n"),
+            BodyFraming::Invalid
+        );
+    }
+
+    #[test]
+    fn head_responses_keep_the_length_but_drop_the_body() {
+        let r = Response::new(200, "text/plain", "ok\n");
+        let full = String::from_utf8(r.to_bytes(false, true)).unwrap();
+        assert!(full.starts_with("HTTP/1.1 200 OK\r\n"));
+        assert!(full.contains("Content-Length: 3\r\n") && full.ends_with("keep-alive\r\n\r\nok\n"));
+        let head = String::from_utf8(r.to_bytes(true, false)).unwrap();
+        assert!(
+            head.contains("Content-Length: 3\r\n") && head.ends_with("Connection: close\r\n\r\n")
+        );
+    }
+}

@@ -1,0 +1,157 @@
+//! The service's counters, exposed at `GET /metrics` in the Prometheus text
+//! format (version 0.0.4).
+
+use super::admission::Counts;
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
+use std::time::Duration;
+
+/// Upper bounds (seconds) of the render-time histogram's buckets.
+const RENDER_SECONDS_BUCKETS: [f64; 12] = [
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
+];
+
+#[derive(Default)]
+pub struct Metrics {
+    /// Responses by (route, status).
+    requests: Mutex<BTreeMap<(&'static str, u16), u64>>,
+    renders: AtomicU64,
+    rays: AtomicU64,
+    /// Per bucket of [`RENDER_SECONDS_BUCKETS`] (not cumulative), then +Inf.
+    render_buckets: [AtomicU64; RENDER_SECONDS_BUCKETS.len() + 1],
+    /// Sum of render times in microseconds.
+    render_micros: AtomicU64,
+    open_connections: AtomicU64,
+}
+
+impl Metrics {
+    pub fn request(&self, route: &'static str, status: u16) {
+        let mut requests = self.requests.lock().unwrap_or_else(PoisonError::into_inner);
+        *requests.entry((route, status)).or_default() += 1;
+    }
+
+    pub fn render(&self, time: Duration, rays: u64) {
+        self.renders.fetch_add(1, Ordering::Relaxed);
+        self.rays.fetch_add(rays, Ordering::Relaxed);
+        let seconds = time.as_secs_f64();
+        let bucket = RENDER_SECONDS_BUCKETS
+            .iter()
+            .position(|&le| seconds <= le)
+            .unwrap_or(RENDER_SECONDS_BUCKETS.len());
+        self.render_buckets[bucket].fetch_add(1, Ordering::Relaxed);
+        let micros = u64::try_from(time.as_micros()).unwrap_or(u64::MAX);
+        self.render_micros.fetch_add(micros, Ordering::Relaxed);
+    }
+
+    pub fn connection_opened(&self) {
+        self.open_connections.fetch_add(1, Ordering::Relaxed);
+    }
+
+    pub fn connection_closed(&self) {
+        self.open_connections.fetch_sub(1, Ordering::Relaxed);
+    }
+
+    /// The Prometheus text exposition, with the admission gate's current counts.
+    pub fn render_text(&self, admission: Counts) -> String {
+        let mut out = String::new();
+        let name = "voxtrace_requests_total";
+        let _ = writeln!(
+            out,
+            "# HELP {name} HTTP responses by route and status.\n# TYPE {name} counter"
+        );
+        let requests = self
+            .requests
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone();
+        for ((route, status), n) in requests {
+            let _ = writeln!(out, "{name}{{route=\"{route}\",status=\"{status}\"}} {n}");
+        }
+        let load = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let simple = [
+            (
+                "voxtrace_renders_total",
+                "counter",
+                "Renders completed.",
+                load(&self.renders),
+            ),
+            (
+                "voxtrace_rays_total",
+                "counter",
+                "Rays traced by completed renders.",
+                load(&self.rays),
+            ),
+            (
+                "voxtrace_render_queue_depth",
+                "gauge",
+                "Renders waiting for a slot.",
+                admission.waiting as u64,
+            ),
+            (
+                "voxtrace_renders_in_flight",
+                "gauge",
+                "Renders running now.",
+                admission.running as u64,
+            ),
+            (
+                "voxtrace_open_connections",
+                "gauge",
+                "Client connections accepted and not yet closed.",
+                load(&self.open_connections),
+            ),
+        ];
+        for (name, kind, help, value) in simple {
+            let _ = writeln!(
+                out,
+                "# HELP {name} {help}\n# TYPE {name} {kind}\n{name} {value}"
+            );
+        }
+        let name = "voxtrace_render_seconds";
+        let _ = writeln!(
+            out,
+            "# HELP {name} Time to build and trace one render.\n# TYPE {name} histogram"
+        );
+        let mut cumulative = 0;
+        for (i, bucket) in self.render_buckets.iter().enumerate() {
+            cumulative += load(bucket);
+            let le = RENDER_SECONDS_BUCKETS
+                .get(i)
+                .map_or_else(|| "+Inf".to_owned(), |le| le.to_string());
+            let _ = writeln!(out, "{name}_bucket{{le=\"{le}\"}} {cumulative}");
+        }
+        let sum = load(&self.render_micros) as f64 / 1e6;
+        let _ = writeln!(out, "{name}_sum {sum}\n{name}_count {cumulative}");
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exposition_counts_requests_and_fills_cumulative_buckets() {
+        let m = Metrics::default();
+        m.request("/render", 200);
+        m.request("/render", 200);
+        m.request("/render", 503);
+        m.render(Duration::from_millis(20), 1000);
+        m.render(Duration::from_secs(60), 5);
+        let text = m.render_text(Counts {
+            running: 1,
+            waiting: 3,
+        });
+        assert!(text.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 2\n"));
+        assert!(text.contains("voxtrace_requests_total{route=\"/render\",status=\"503\"} 1\n"));
+        assert!(text.contains("voxtrace_rays_total 1005\n"));
+        assert!(text.contains("voxtrace_render_queue_depth 3\n"));
+        assert!(text.contains("voxtrace_renders_in_flight 1\n"));
+        assert!(text.contains("voxtrace_render_seconds_bucket{le=\"0.01\"} 0\n"));
+        assert!(text.contains("voxtrace_render_seconds_bucket{le=\"0.025\"} 1\n"));
+        assert!(text.contains("voxtrace_render_seconds_bucket{le=\"30\"} 1\n"));
+        assert!(text.contains("voxtrace_render_seconds_bucket{le=\"+Inf\"} 2\n"));
+        assert!(text.contains("voxtrace_render_seconds_count 2\n"));
+    }
+}

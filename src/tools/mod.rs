@@ -1,0 +1,3 @@
+//! Tools around the renderer: load generation, benchmarks, scene generation.
+
+pub mod load;

@@ -1,0 +1,120 @@
+//! `voxtrace load` against a real service on an ephemeral port.
+
+use std::time::Duration;
+use voxtrace::service::{Server, ServiceConfig};
+use voxtrace::tools::load::{self, LoadConfig, Stop, Url};
+
+fn serve(config: ServiceConfig) -> voxtrace::service::ServerHandle {
+    let config = ServiceConfig {
+        addr: "127.0.0.1:0".into(),
+        ..config
+    };
+    Server::bind(config).unwrap().spawn().unwrap()
+}
+
+fn config(url: String, body: Option<Vec<u8>>, concurrency: usize, stop: Stop) -> LoadConfig {
+    LoadConfig {
+        url: Url::parse(&url).unwrap(),
+        body,
+        concurrency,
+        stop,
+        rate: None,
+        timeout: Duration::from_secs(30),
+        in_process: false,
+        progress: false,
+    }
+}
+
+fn sample() -> Vec<u8> {
+    std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/testSample.txt"
+    ))
+    .unwrap()
+}
+
+#[test]
+fn closed_loop_counts_renders_rays_and_statuses() {
+    let server = serve(ServiceConfig::default());
+    let url = format!("http://{}/render?spp=1", server.addr());
+    let cfg = config(url, Some(sample()), 4, Stop::Requests(12));
+    let report = load::run(&cfg).unwrap();
+    assert_eq!(report.requests, 12);
+    assert_eq!(report.status.get(&200), Some(&12));
+    assert!(report.errors.is_empty(), "{:?}", report.errors);
+    assert_eq!(report.renders, 12);
+    assert!(report.rays >= 12 * 600 * 600);
+    assert!(report.latency.p50 > Duration::ZERO && report.latency.p50 <= report.latency.max);
+
+    let json = report.to_json(&cfg);
+    assert_eq!(json["status"]["200"], 12);
+    assert_eq!(json["errors"], serde_json::json!({}));
+    for key in ["p50", "p90", "p99", "p999", "max"] {
+        assert!(json["latency_ms"][key].as_f64().unwrap() > 0.0, "{key}");
+    }
+    assert!(json["requests_per_s"].as_f64().unwrap() > 0.0);
+
+    // The same work in process reports the same rays per render.
+    let in_process = load::run(&LoadConfig {
+        in_process: true,
+        stop: Stop::Requests(2),
+        ..cfg
+    })
+    .unwrap();
+    assert_eq!(
+        (in_process.renders, in_process.rays / 2),
+        (2, report.rays / 12)
+    );
+}
+
+#[test]
+fn open_loop_keeps_its_schedule_and_counts_rejections_and_transport_errors() {
+    let server = serve(ServiceConfig::default());
+    let healthz = format!("http://{}/healthz", server.addr());
+    let report = load::run(&LoadConfig {
+        rate: Some(200.0),
+        ..config(healthz, None, 2, Stop::After(Duration::from_millis(500)))
+    })
+    .unwrap();
+    assert_eq!(report.requests, 100, "200 req/s for 0.5 s");
+    assert_eq!(report.status.get(&200), Some(&100));
+    assert!(report.elapsed >= Duration::from_millis(490));
+
+    // A POST of a broken scene: every answer a 400, none a render.
+    let render = format!("http://{}/render", server.addr());
+    let report = load::run(&config(
+        render,
+        Some(b"NEAR x\n".to_vec()),
+        2,
+        Stop::Requests(6),
+    ))
+    .unwrap();
+    assert_eq!((report.status.get(&400), report.renders), (Some(&6), 0));
+
+    let addr = server.addr();
+    drop(server);
+    let report = load::run(&config(
+        format!("http://{addr}/healthz"),
+        None,
+        1,
+        Stop::Requests(3),
+    ))
+    .unwrap();
+    assert_eq!(report.errors.get("connect"), Some(&3));
+}
+
+#[test]
+fn a_kept_alive_connection_closed_by_the_server_while_idle_is_replaced_not_counted_as_an_error() {
+    let server = serve(ServiceConfig {
+        idle_timeout: Duration::from_millis(50),
+        ..ServiceConfig::default()
+    });
+    let healthz = format!("http://{}/healthz", server.addr());
+    let report = load::run(&LoadConfig {
+        rate: Some(10.0),
+        ..config(healthz, None, 1, Stop::After(Duration::from_millis(600)))
+    })
+    .unwrap();
+    assert_eq!(report.status.get(&200), Some(&6), "{report}");
+    assert!(report.errors.is_empty(), "{:?}", report.errors);
+}

@@ -1,0 +1,618 @@
+//! `voxtrace serve` end to end: a server on an ephemeral loopback port, spoken
+//! to over raw TCP so every byte of the protocol is under test.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::Path;
+use std::time::{Duration, Instant};
+use voxtrace::service::{Server, ServerHandle, ServiceConfig};
+
+fn start(config: ServiceConfig) -> ServerHandle {
+    let config = ServiceConfig {
+        addr: "127.0.0.1:0".into(),
+        ..config
+    };
+    Server::bind(config).unwrap().spawn().unwrap()
+}
+
+fn sample(name: &str) -> Vec<u8> {
+    std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(name),
+    )
+    .unwrap()
+}
+
+/// A client connection that reads responses one after another.
+struct Client {
+    reader: BufReader<TcpStream>,
+}
+
+#[derive(Debug)]
+struct Reply {
+    status: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Reply {
+    fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name))
+            .map(|(_, v)| v.as_str())
+    }
+
+    fn text(&self) -> String {
+        String::from_utf8_lossy(&self.body).into_owned()
+    }
+
+    fn json(&self) -> serde_json::Value {
+        assert_eq!(self.header("content-type"), Some("application/json"));
+        serde_json::from_slice(&self.body).unwrap()
+    }
+}
+
+impl Client {
+    fn connect(addr: SocketAddr) -> Client {
+        let stream = TcpStream::connect(addr).unwrap();
+        stream
+            .set_read_timeout(Some(Duration::from_secs(30)))
+            .unwrap();
+        Client {
+            reader: BufReader::new(stream),
+        }
+    }
+
+    fn send(&mut self, bytes: &[u8]) {
+        self.reader.get_mut().write_all(bytes).unwrap();
+    }
+
+    /// Sends a request with a Host header and the body's Content-Length.
+    fn request(&mut self, method: &str, target: &str, headers: &[&str], body: &[u8]) -> Reply {
+        let mut head = format!("{method} {target} HTTP/1.1\r\nHost: test\r\n");
+        for h in headers {
+            head += &format!("{h}\r\n");
+        }
+        if !body.is_empty() || method == "POST" {
+            head += &format!("Content-Length: {}\r\n", body.len());
+        }
+        head += "\r\n";
+        let mut bytes = head.into_bytes();
+        bytes.extend_from_slice(body);
+        self.send(&bytes);
+        self.read_reply(method == "HEAD")
+    }
+
+    fn read_reply(&mut self, head_only: bool) -> Reply {
+        let mut line = String::new();
+        self.reader.read_line(&mut line).unwrap();
+        let status = line
+            .split(' ')
+            .nth(1)
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("bad status line {line:?}"));
+        let mut headers = Vec::new();
+        loop {
+            line.clear();
+            self.reader.read_line(&mut line).unwrap();
+            let line = line.trim_end();
+            if line.is_empty() {
+                break;
+            }
+            let (name, value) = line.split_once(':').unwrap();
+            headers.push((name.to_owned(), value.trim().to_owned()));
+        }
+        let mut reply = Reply {
+            status,
+            headers,
+            body: Vec::new(),
+        };
+        if !head_only && status >= 200 {
+            let length: usize = reply.header("content-length").unwrap().parse().unwrap();
+            reply.body = vec![0; length];
+            self.reader.read_exact(&mut reply.body).unwrap();
+        }
+        reply
+    }
+
+    /// Whether the server has closed the connection.
+    fn closed(&mut self) -> bool {
+        let mut rest = Vec::new();
+        matches!(self.reader.read_to_end(&mut rest), Ok(0))
+    }
+}
+
+/// What `voxtrace render SCENE -o x.<ext>` writes.
+fn cli_render(scene: &str, extension: &str) -> Vec<u8> {
+    let dir = std::env::temp_dir().join(format!("voxtrace-service-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join(format!("{scene}.{extension}"));
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_voxtrace"))
+        .arg("render")
+        .arg(
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("scenes")
+                .join(scene),
+        )
+        .arg("-o")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let bytes = std::fs::read(&out).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    bytes
+}
+
+/// A scene that costs as much as asked: one sphere filling the view, lit by
+/// 1000 lights, so every pixel sample casts 1000 shadow rays whatever the index.
+fn costly_scene() -> Vec<u8> {
+    let mut text = String::from(
+        "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 256 256\nSPHERE big 0 0 -3 4 4 1 1 1 1 0.1 0.8 0.2 0 10\n",
+    );
+    for i in 0..1000 {
+        text += &format!("LIGHT l{i} {} {} 0 0.001 0.001 0.001\n", i % 10, i / 100);
+    }
+    text.into_bytes()
+}
+
+/// Polls `/metrics` until `metric` reaches `value`.
+fn wait_for_metric(addr: SocketAddr, metric: &str, value: u64) {
+    let started = Instant::now();
+    loop {
+        let text = Client::connect(addr)
+            .request("GET", "/metrics", &[], b"")
+            .text();
+        let now = text
+            .lines()
+            .find_map(|l| l.strip_prefix(metric)?.trim().parse::<u64>().ok());
+        if now == Some(value) {
+            return;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "{metric} never reached {value}:\n{text}"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn a_rendered_scene_equals_the_cli_output_byte_for_byte() {
+    let server = start(ServiceConfig::default());
+    let mut client = Client::connect(server.addr());
+    let reply = client.request("POST", "/render", &[], &sample("testSample.txt"));
+    assert_eq!(reply.status, 200, "{}", reply.text());
+    assert_eq!(reply.header("content-type"), Some("image/png"));
+    assert_eq!(
+        reply.header("content-disposition"),
+        Some("inline; filename=\"testSample.png\"")
+    );
+    assert_eq!(reply.header("x-image-width"), Some("600"));
+    assert_eq!(reply.header("x-image-height"), Some("600"));
+    assert!(reply.header("x-rays").unwrap().parse::<u64>().unwrap() >= 600 * 600);
+    assert!(reply.header("x-render-ms").unwrap().parse::<f64>().unwrap() > 0.0);
+    assert!(reply
+        .header("access-control-expose-headers")
+        .unwrap()
+        .contains("X-Render-Ms"));
+    let decoded = image::load_from_memory(&reply.body).unwrap();
+    assert_eq!((decoded.width(), decoded.height()), (600, 600));
+    assert!(
+        reply.body == cli_render("testSample.txt", "png"),
+        "PNG differs from the CLI's"
+    );
+
+    let ppm = client.request("POST", "/render?format=ppm", &[], &sample("testShadow.txt"));
+    assert_eq!(ppm.status, 200);
+    assert_eq!(ppm.header("content-type"), Some("image/x-portable-pixmap"));
+    assert!(
+        ppm.body == cli_render("testShadow.txt", "ppm"),
+        "PPM differs from the CLI's"
+    );
+}
+
+#[test]
+fn scene_errors_name_line_and_column_as_text_and_json() {
+    let server = start(ServiceConfig::default());
+    let mut client = Client::connect(server.addr());
+    let bad = String::from_utf8(sample("testSample.txt"))
+        .unwrap()
+        .replace("LEFT -1", "LEFT abc");
+    let expected = voxtrace::scene::parse(&bad).unwrap_err();
+    assert_eq!((expected.line, expected.column), (2, 6));
+
+    let text = client.request("POST", "/render", &[], bad.as_bytes());
+    assert_eq!(text.status, 400);
+    assert_eq!(text.text(), format!("{expected}\n"));
+    assert!(text
+        .text()
+        .starts_with("line 2, column 6: expected a number"));
+
+    let json = client.request(
+        "POST",
+        "/render",
+        &["Accept: image/png, application/json"],
+        bad.as_bytes(),
+    );
+    assert_eq!(json.status, 400);
+    assert_eq!(
+        json.json(),
+        serde_json::json!({"error": "scene", "message": expected.to_string(), "line": 2, "column": 6})
+    );
+
+    let query = client.request(
+        "POST",
+        "/render?spp=0",
+        &["Accept: application/json"],
+        &sample("testSample.txt"),
+    );
+    assert_eq!(query.status, 400);
+    assert_eq!(query.json()["error"], "query");
+    assert!(query.json()["message"]
+        .as_str()
+        .unwrap()
+        .contains("spp must be"));
+}
+
+#[test]
+fn routes_methods_and_head() {
+    let server = start(ServiceConfig::default());
+    let mut client = Client::connect(server.addr());
+
+    let page = client.request("GET", "/", &[], b"");
+    assert_eq!(page.status, 200);
+    assert!(page
+        .header("content-type")
+        .unwrap()
+        .starts_with("text/html"));
+    assert!(page.text().contains("<script src=\"/app.js\""));
+    for (path, kind) in [("/style.css", "text/css"), ("/app.js", "text/javascript")] {
+        let asset = client.request("GET", path, &[], b"");
+        assert_eq!(asset.status, 200, "{path}");
+        assert!(
+            asset.header("content-type").unwrap().starts_with(kind),
+            "{path}"
+        );
+    }
+
+    let head = client.request("HEAD", "/", &[], b"");
+    assert_eq!(head.status, 200);
+    assert_eq!(
+        head.header("content-length"),
+        Some(page.body.len().to_string().as_str())
+    );
+    // The HEAD response had no body: the next reply on the connection parses.
+    assert_eq!(client.request("GET", "/healthz", &[], b"").text(), "ok\n");
+
+    let list = client.request("GET", "/scenes", &[], b"").json();
+    let names: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert!(names.contains(&"testSample.txt") && names.contains(&"testShadow.txt"));
+    let sample_entry = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "testSample.txt")
+        .unwrap();
+    assert_eq!(sample_entry["bytes"], sample("testSample.txt").len());
+    let scene = client.request("GET", "/scenes/testSample.txt", &[], b"");
+    assert_eq!((scene.status, scene.body), (200, sample("testSample.txt")));
+    assert_eq!(
+        client
+            .request("GET", "/scenes/../Cargo.toml", &[], b"")
+            .status,
+        404
+    );
+
+    let missing = client.request("GET", "/nowhere", &["Accept: application/json"], b"");
+    assert_eq!(missing.status, 404);
+    assert_eq!(missing.json()["error"], "not_found");
+
+    let get_render = client.request("GET", "/render", &[], b"");
+    assert_eq!(
+        (get_render.status, get_render.header("allow")),
+        (405, Some("POST"))
+    );
+    let post_health = client.request("POST", "/healthz", &[], b"x");
+    assert_eq!(
+        (post_health.status, post_health.header("allow")),
+        (405, Some("GET, HEAD"))
+    );
+
+    let metrics = client.request("GET", "/metrics", &[], b"").text();
+    assert!(
+        metrics.contains("voxtrace_requests_total{route=\"/healthz\",status=\"200\"} 1\n"),
+        "{metrics}"
+    );
+    assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"405\"} 1\n"));
+    assert!(metrics.contains("voxtrace_requests_total{route=\"other\",status=\"404\"} 1\n"));
+    for name in [
+        "voxtrace_renders_total",
+        "voxtrace_rays_total",
+        "voxtrace_render_seconds_bucket",
+        "voxtrace_render_queue_depth",
+        "voxtrace_renders_in_flight",
+        "voxtrace_open_connections 1",
+    ] {
+        assert!(metrics.contains(name), "{name} missing");
+    }
+}
+
+#[test]
+fn one_connection_serves_many_requests_until_told_to_close() {
+    let server = start(ServiceConfig::default());
+    let mut client = Client::connect(server.addr());
+    for _ in 0..3 {
+        assert_eq!(client.request("GET", "/healthz", &[], b"").status, 200);
+        let reply = client.request("POST", "/render?spp=2", &[], &sample("testDiffuse.txt"));
+        assert_eq!(
+            (reply.status, reply.header("connection")),
+            (200, Some("keep-alive"))
+        );
+    }
+    // Two pipelined requests in one write get two replies in order.
+    client.send(b"GET /healthz HTTP/1.1\r\nHost: t\r\n\r\nGET /scenes/testShadow.txt HTTP/1.1\r\nHost: t\r\n\r\n");
+    assert_eq!(client.read_reply(false).text(), "ok\n");
+    assert_eq!(client.read_reply(false).body, sample("testShadow.txt"));
+
+    let last = client.request("GET", "/healthz", &["Connection: close"], b"");
+    assert_eq!(
+        (last.status, last.header("connection")),
+        (200, Some("close"))
+    );
+    assert!(client.closed());
+    let metrics = Client::connect(server.addr())
+        .request("GET", "/metrics", &[], b"")
+        .text();
+    assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 3\n"));
+}
+
+#[test]
+fn http_framing_expect_continue_chunked_and_http10() {
+    let server = start(ServiceConfig::default());
+    let mut client = Client::connect(server.addr());
+    let scene = sample("testSample.txt");
+    client.send(format!("POST /render HTTP/1.1\r\nHost: t\r\nExpect: 100-continue\r\nContent-Length: {}\r\n\r\n", scene.len()).as_bytes());
+    assert_eq!(client.read_reply(false).status, 100);
+    client.send(&scene);
+    assert_eq!(client.read_reply(false).status, 200);
+
+    let no_length = client.request("POST", "/render", &[], b"");
+    assert_eq!(no_length.status, 400, "an empty scene is a scene error");
+    client.send(b"POST /render HTTP/1.1\r\nHost: t\r\n\r\n");
+    assert_eq!(client.read_reply(false).status, 411);
+
+    client.send(b"POST /render HTTP/1.1\r\nHost: t\r\nTransfer-Encoding: chunked\r\n\r\n5\r\nNEAR \r\n0\r\n\r\n");
+    let chunked = client.read_reply(false);
+    assert_eq!(
+        (chunked.status, chunked.header("connection")),
+        (411, Some("close"))
+    );
+    assert!(client.closed());
+
+    let mut old = Client::connect(server.addr());
+    old.send(b"GET /healthz HTTP/1.0\r\n\r\n");
+    let reply = old.read_reply(false);
+    assert_eq!(
+        (reply.status, reply.header("connection")),
+        (200, Some("close"))
+    );
+    assert!(old.closed());
+
+    let mut hostless = Client::connect(server.addr());
+    hostless.send(b"GET /healthz HTTP/1.1\r\n\r\n");
+    assert_eq!(hostless.read_reply(false).status, 400);
+
+    let mut garbage = Client::connect(server.addr());
+    garbage.send(b"\x16\x03\x01 hello there\r\n\r\n");
+    assert_eq!(garbage.read_reply(false).status, 400);
+    assert!(garbage.closed());
+}
+
+#[test]
+fn size_limits_give_413_431_and_422() {
+    let server = start(ServiceConfig {
+        max_body: 1000,
+        ..ServiceConfig::default()
+    });
+    // 413 comes from the header alone: no body byte is ever sent.
+    let mut big = Client::connect(server.addr());
+    big.send(b"POST /render HTTP/1.1\r\nHost: t\r\nAccept: application/json\r\nContent-Length: 1000000000\r\n\r\n");
+    let reply = big.read_reply(false);
+    assert_eq!(
+        (reply.status, reply.json()["error"].as_str()),
+        (413, Some("body_too_large"))
+    );
+    assert!(big.closed());
+
+    let mut huge_head = Client::connect(server.addr());
+    let cookie = "a".repeat(20_000);
+    huge_head
+        .send(format!("GET /healthz HTTP/1.1\r\nHost: t\r\nCookie: {cookie}\r\n\r\n").as_bytes());
+    assert_eq!(huge_head.read_reply(false).status, 431);
+    let mut many_headers = Client::connect(server.addr());
+    many_headers.send(
+        format!(
+            "GET /healthz HTTP/1.1\r\nHost: t\r\n{}\r\n",
+            "X-A: 1\r\n".repeat(100)
+        )
+        .as_bytes(),
+    );
+    assert_eq!(many_headers.read_reply(false).status, 431);
+
+    let mut client = Client::connect(server.addr());
+    let wide = String::from_utf8(sample("testSample.txt"))
+        .unwrap()
+        .replace("RES 600 600", "RES 5000 5000");
+    let reply = client.request(
+        "POST",
+        "/render",
+        &["Accept: application/json"],
+        wide.as_bytes(),
+    );
+    assert_eq!(
+        (reply.status, reply.json()["error"].as_str()),
+        (422, Some("limit"))
+    );
+    assert!(reply.json()["message"]
+        .as_str()
+        .unwrap()
+        .contains("25000000 pixels"));
+    let reply = client.request("POST", "/render?spp=1024", &[], &sample("testSample.txt"));
+    assert_eq!(reply.status, 422);
+    assert!(reply.text().contains("samples"), "{}", reply.text());
+}
+
+#[test]
+fn stalled_requests_get_408() {
+    let server = start(ServiceConfig {
+        head_timeout: Duration::from_millis(300),
+        body_timeout: Duration::from_millis(300),
+        ..ServiceConfig::default()
+    });
+    let mut slow_head = Client::connect(server.addr());
+    slow_head.send(b"GET /healthz HTTP/1.1\r\nHo");
+    let started = Instant::now();
+    assert_eq!(slow_head.read_reply(false).status, 408);
+    assert!(started.elapsed() < Duration::from_secs(5));
+    assert!(slow_head.closed());
+
+    let mut slow_body = Client::connect(server.addr());
+    slow_body.send(b"POST /render HTTP/1.1\r\nHost: t\r\nContent-Length: 100\r\n\r\nNEAR 1\n");
+    assert_eq!(slow_body.read_reply(false).status, 408);
+    assert!(slow_body.closed());
+}
+
+#[test]
+fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
+    let server = start(ServiceConfig {
+        concurrent_renders: 1,
+        queue: 0,
+        render_timeout: Duration::from_millis(1500),
+        ..ServiceConfig::default()
+    });
+    let addr = server.addr();
+    let costly = std::thread::spawn(move || {
+        Client::connect(addr).request(
+            "POST",
+            "/render?spp=64",
+            &["Accept: application/json"],
+            &costly_scene(),
+        )
+    });
+    wait_for_metric(addr, "voxtrace_renders_in_flight", 1);
+    let turned_away = Client::connect(addr).request(
+        "POST",
+        "/render",
+        &["Accept: application/json"],
+        &sample("testSample.txt"),
+    );
+    assert_eq!(turned_away.status, 503);
+    assert_eq!(turned_away.header("retry-after"), Some("1"));
+    assert_eq!(turned_away.json()["error"], "busy");
+
+    let started = Instant::now();
+    let reply = costly.join().unwrap();
+    assert_eq!(
+        (reply.status, reply.json()["error"].as_str()),
+        (422, Some("time_budget"))
+    );
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "the render outlived its budget"
+    );
+    wait_for_metric(addr, "voxtrace_renders_in_flight", 0);
+    // The slot is free again.
+    let after = Client::connect(addr).request("POST", "/render", &[], &sample("testSample.txt"));
+    assert_eq!(after.status, 200);
+}
+
+#[test]
+fn sixteen_concurrent_clients_are_all_served_correctly() {
+    let server = start(ServiceConfig::default());
+    let scenes = [
+        "testSample.txt",
+        "testShadow.txt",
+        "testSpecular.txt",
+        "testReflection.txt",
+    ];
+    let expected: Vec<Vec<u8>> = scenes
+        .iter()
+        .map(|name| {
+            let scene = voxtrace::scene::parse(sample(name)).unwrap();
+            let options = voxtrace::render::RenderOptions::default();
+            let image = voxtrace::render::render_scene(&scene, &options, &|_| {})
+                .unwrap()
+                .image;
+            image.encode(voxtrace::output::Format::Png).unwrap()
+        })
+        .collect();
+    let addr = server.addr();
+    std::thread::scope(|s| {
+        let clients: Vec<_> = (0..16)
+            .map(|i| {
+                let (name, expected) = (scenes[i % scenes.len()], &expected[i % scenes.len()]);
+                s.spawn(move || {
+                    let mut client = Client::connect(addr);
+                    for _ in 0..2 {
+                        let reply = client.request("POST", "/render", &[], &sample(name));
+                        assert_eq!(reply.status, 200, "client {i}: {}", reply.text());
+                        assert!(
+                            reply.body == *expected,
+                            "client {i} got a different image of {name}"
+                        );
+                    }
+                })
+            })
+            .collect();
+        for client in clients {
+            client.join().unwrap();
+        }
+    });
+    let metrics = Client::connect(addr)
+        .request("GET", "/metrics", &[], b"")
+        .text();
+    assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 32\n"));
+    assert!(metrics.contains("voxtrace_renders_total 32\n"));
+}
+
+#[test]
+fn slow_clients_cannot_hold_every_handler_while_others_wait() {
+    // Two handlers, both taken by clients that trickle their heads; the
+    // normal client waiting behind them must not wait the full head timeout.
+    let server = start(ServiceConfig {
+        workers: 2,
+        head_timeout: Duration::from_secs(20),
+        idle_timeout: Duration::from_secs(20),
+        ..ServiceConfig::default()
+    });
+    let mut slow: Vec<Client> = (0..2).map(|_| Client::connect(server.addr())).collect();
+    for client in &mut slow {
+        client.send(b"GET /healthz HTTP/1.1\r\nX-Slow: ");
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    let started = Instant::now();
+    let reply = Client::connect(server.addr()).request("GET", "/healthz", &[], b"");
+    assert_eq!(reply.status, 200);
+    assert!(
+        started.elapsed() < Duration::from_secs(5),
+        "waited {:?}",
+        started.elapsed()
+    );
+    // At least one trickling client was cut off (408) to make room.
+    let cut_off = slow.iter_mut().any(|client| {
+        let stream = client.reader.get_ref();
+        stream.set_nonblocking(true).unwrap();
+        let mut first = [0u8; 12];
+        let n = stream.peek(&mut first).unwrap_or(0);
+        &first[..n] == b"HTTP/1.1 408"
+    });
+    assert!(cut_off);
+}
