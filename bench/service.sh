@@ -108,16 +108,16 @@ overload() {
     }
     sat=$(cat "$WORK/saturation")
     rate=$(echo "4 * $sat" | bc -l)
-    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 20 s, testSample 256×256"
+    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 30 s, testSample 256×256"
     echo
     start_server --workers 512
     sleep 0.3
     rss0=$(proc VmRSS)
-    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 20s --rate "$rate" --json > "$WORK/overload.json" &
+    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 30s --rate "$rate" --json > "$WORK/overload.json" &
     LOAD=$!
     samples=""
     for _ in $(seq 10); do
-        sleep 2
+        sleep 3
         samples="$samples $(proc VmRSS)"
     done
     wait "$LOAD"
@@ -125,7 +125,7 @@ overload() {
     threads=$(proc Threads)
     field '"requests %d, status %s, transport errors %s\n200: %s\n503: %s" % (d["requests"], d["status"], d["errors"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"))' < "$WORK/overload.json" | sed 's/^/    /'
     field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
-    echo "    server RSS (KiB): before $rss0, every 2 s during:$samples; peak $(proc VmHWM); threads after: $threads"
+    echo "    server RSS (KiB): before $rss0, every 3 s during:$samples; peak $(proc VmHWM); threads after: $threads"
     stop_server
     echo
 }
