@@ -49,33 +49,50 @@ median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 proc() { awk -v k="$1:" '$1 == k {print $2}' "/proc/$SERVER/status"; }
 metric() { curl -s "http://$ADDR/metrics" | awk -v m="$1" '$1 == m {print $2}'; }
 
+# cpu_of FILE: the user + system seconds GNU time wrote to FILE.
+cpu_of() { awk '{print $1 + $2}' "$1"; }
+# server_cpu: the server's user + system seconds so far.
+server_cpu() { awk -v t="$(getconf CLK_TCK)" '{print ($14 + $15) / t}' "/proc/$SERVER/stat"; }
+
 throughput() {
-    echo "### Throughput: service vs in-process (renders/s, median of $REPS runs of $DUR ($DUR_HEAVY heavy), interleaved)"
+    echo "### Throughput: service vs in-process (median of $REPS runs of $DUR ($DUR_HEAVY heavy), interleaved)"
     echo
-    echo "| scene | concurrency | in-process | service | service / in-process | service / in-process saturation |"
-    echo "|---|---:|---:|---:|---:|---:|"
+    echo "Renders/s by wall clock, and CPU milliseconds per render (in-process: the whole process;"
+    echo "service: server + load client), which other work on the machine disturbs far less."
+    echo
+    echo "| scene | concurrency | in-process renders/s | service renders/s | service / in-process | service / in-process saturation | in-process CPU ms/render | service CPU ms/render | CPU ratio |"
+    echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
     start_server
     for case in "sample256.txt|spp=1|testSample 256×256|$DUR" "sample600.txt|spp=4|testSample 600×600, 4 spp|$DUR_HEAVY"; do
         IFS='|' read -r scene query label dur <<< "$case"
         rows=()
         for c in 1 2 8 64; do
-            : > "$WORK/in"; : > "$WORK/svc"
+            : > "$WORK/in"; : > "$WORK/svc"; : > "$WORK/in_cpu"; : > "$WORK/svc_cpu"
             for _ in $(seq "$REPS"); do
-                "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json \
-                    | field 'd["renders_per_s"]' >> "$WORK/in"
-                "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json \
-                    | field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' >> "$WORK/svc"
+                /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                    "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                field 'd["renders_per_s"]' < "$WORK/run.json" >> "$WORK/in"
+                n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
+                echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l >> "$WORK/in_cpu"
+
+                before=$(server_cpu)
+                /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                    "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                sleep 0.2
+                after=$(server_cpu)
+                field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' < "$WORK/run.json" >> "$WORK/svc"
+                n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
+                echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
             done
-            in=$(median < "$WORK/in"); svc=$(median < "$WORK/svc")
-            rows+=("$c $in $svc")
-            [ "$c" = 8 ] && [ "$scene" = sample256.txt ] && echo "$svc" > "$WORK/saturation"
+            rows+=("$c $(median < "$WORK/in") $(median < "$WORK/svc") $(median < "$WORK/in_cpu") $(median < "$WORK/svc_cpu")")
+            [ "$c" = 8 ] && [ "$scene" = sample256.txt ] && median < "$WORK/svc" > "$WORK/saturation"
         done
         # In-process saturation: the best in-process throughput at any concurrency.
         best=$(printf '%s\n' "${rows[@]}" | awk '{print $2}' | sort -g | tail -1)
         for row in "${rows[@]}"; do
-            read -r c in svc <<< "$row"
-            printf '| %s | %d | %.1f | %.1f | %.3f | %.3f |\n' "$label" "$c" "$in" "$svc" \
-                "$(echo "$svc / $in" | bc -l)" "$(echo "$svc / $best" | bc -l)"
+            read -r c in svc in_cpu svc_cpu <<< "$row"
+            printf '| %s | %d | %.1f | %.1f | %.3f | %.3f | %.2f | %.2f | %.3f |\n' "$label" "$c" "$in" "$svc" \
+                "$(echo "$svc / $in" | bc -l)" "$(echo "$svc / $best" | bc -l)" "$in_cpu" "$svc_cpu" "$(echo "$svc_cpu / $in_cpu" | bc -l)"
         done
     done
     stop_server
@@ -91,16 +108,16 @@ overload() {
     }
     sat=$(cat "$WORK/saturation")
     rate=$(echo "4 * $sat" | bc -l)
-    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 20 s, testSample 256×256"
+    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 30 s, testSample 256×256"
     echo
     start_server --workers 512
     sleep 0.3
     rss0=$(proc VmRSS)
-    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 20s --rate "$rate" --json > "$WORK/overload.json" &
+    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 30s --rate "$rate" --json > "$WORK/overload.json" &
     LOAD=$!
     samples=""
     for _ in $(seq 10); do
-        sleep 2
+        sleep 3
         samples="$samples $(proc VmRSS)"
     done
     wait "$LOAD"
@@ -108,7 +125,7 @@ overload() {
     threads=$(proc Threads)
     field '"requests %d, status %s, transport errors %s\n200: %s\n503: %s" % (d["requests"], d["status"], d["errors"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"))' < "$WORK/overload.json" | sed 's/^/    /'
     field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
-    echo "    server RSS (KiB): before $rss0, every 2 s during:$samples; peak $(proc VmHWM); threads after: $threads"
+    echo "    server RSS (KiB): before $rss0, every 3 s during:$samples; peak $(proc VmHWM); threads after: $threads"
     stop_server
     echo
 }
@@ -136,7 +153,7 @@ fuzz() {
     python3 bench/fuzz.py 127.0.0.1 "${ADDR##*:}" "$FUZZ_COUNT" 8 1 | sed 's/^/    /'
     sleep 1.5
     echo "    server alive: $(kill -0 "$SERVER" && echo yes); threads before $threads0, after $(proc Threads)"
-    echo "    /healthz: $(curl -s "http://$ADDR/healthz"); open connections after: $(metric voxtrace_open_connections); panics: $(curl -s "http://$ADDR/metrics" | grep -c 'route="panic"' || true)"
+    echo "    /healthz: $(curl -s "http://$ADDR/healthz"); open connections after (counting the /metrics request itself): $(metric voxtrace_open_connections); panics: $(curl -s "http://$ADDR/metrics" | grep -c 'route="panic"' || true)"
     stop_server
     echo
 }

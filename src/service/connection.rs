@@ -25,47 +25,54 @@ pub fn serve(state: &State, stream: TcpStream, accepted: Instant) {
     loop {
         let head = match conn.read_head(&state.config.timeouts(), &pressure) {
             Ok(head) => head,
-            Err(ReadError::Closed | ReadError::Io) => return,
-            Err(error) => {
-                let api = match error {
-                    ReadError::Stalled => {
-                        ApiError::new(408, "request_timeout", "the request did not arrive in time")
-                    }
-                    ReadError::HeadTooLarge => ApiError::new(
-                        431,
-                        "head_too_large",
-                        format!(
-                            "the request head exceeds {} bytes or {} header lines",
-                            crate::limits::MAX_HEAD_BYTES,
-                            crate::limits::MAX_HEADERS
-                        ),
-                    ),
-                    ReadError::Malformed(why) => ApiError::new(400, "bad_request", why),
-                    ReadError::Closed | ReadError::Io => unreachable!("handled above"),
-                };
-                state.metrics.request("other", api.status);
-                let _ = api
-                    .into_response(false)
-                    .write_to(&mut conn.stream, false, false);
-                return;
-            }
+            Err(error) => return refuse(state, &mut conn, error),
         };
-        let route = routes::label(&head.path);
-        match handle(state, &mut conn, &head) {
-            Step::Gone => {
-                // 499: nginx's code for "client closed the request".
-                state.metrics.request(route, 499);
-                return;
-            }
-            Step::Reply { response, keep } => {
-                state.metrics.request(route, response.status);
-                let keep = keep && head.wants_keep_alive() && !state.stopping();
-                let written = response.write_to(&mut conn.stream, head.method == "HEAD", keep);
-                if written.is_err() || !keep {
-                    return;
-                }
-                conn.request_done();
-            }
+        if !answer(state, &mut conn, &head) {
+            return;
+        }
+        conn.request_done();
+    }
+}
+
+/// No request could be read: say why, if there is anyone to tell, in plain
+/// text (there are no headers to ask for JSON), and close.
+fn refuse(state: &State, conn: &mut Connection, error: ReadError) {
+    let error = match error {
+        ReadError::Closed | ReadError::Io => return,
+        ReadError::Stalled => {
+            ApiError::new(408, "request_timeout", "the request did not arrive in time")
+        }
+        ReadError::HeadTooLarge => ApiError::new(
+            431,
+            "head_too_large",
+            format!(
+                "the request head exceeds {} bytes or {} header lines",
+                crate::limits::MAX_HEAD_BYTES,
+                crate::limits::MAX_HEADERS
+            ),
+        ),
+        ReadError::Malformed(why) => ApiError::new(400, "bad_request", why),
+    };
+    state.metrics.request("other", error.status);
+    let _ = error
+        .into_response(false)
+        .write_to(&mut conn.stream, false, false);
+}
+
+/// Answers one request; whether the connection stays open for the next.
+fn answer(state: &State, conn: &mut Connection, head: &RequestHead) -> bool {
+    let route = routes::label(&head.path);
+    match handle(state, conn, head) {
+        Step::Gone => {
+            // 499: nginx's code for "client closed the request".
+            state.metrics.request(route, 499);
+            false
+        }
+        Step::Reply { response, keep } => {
+            state.metrics.request(route, response.status);
+            let keep = keep && head.wants_keep_alive() && !state.stopping();
+            let written = response.write_to(&mut conn.stream, head.method == "HEAD", keep);
+            written.is_ok() && keep
         }
     }
 }

@@ -139,7 +139,7 @@ pub fn handle(
     check_limits(&scene, &query, config)?;
 
     let queued_until = Instant::now() + config.render_timeout;
-    let _ticket = state
+    let ticket = state
         .admission
         .enter(queued_until)
         .map_err(|_| ApiError::busy(limits::RETRY_AFTER_S))?;
@@ -168,7 +168,8 @@ pub fn handle(
             RenderError::BadOption(why) => bad_query(why),
         })?;
     let elapsed = started.elapsed();
-    drop(_ticket);
+    // Encoding runs on this handler thread: the slot is free for the next render.
+    drop(ticket);
     let rays = rendered.stats.rays.total();
     state.metrics.render(elapsed, rays);
 
