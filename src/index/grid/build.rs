@@ -1,0 +1,187 @@
+//! Building the grid: size classes, levels, and the (cell, sphere) pairs.
+//!
+//! # Which level a sphere goes to
+//! A sphere's reach is its bounding radius ρ (largest scale) plus a pad that
+//! covers the rounding of the hit test (below). Diameters `2·reach` fall into
+//! bands of a factor [`BAND`] = 4: band k holds diameters in (4^(k−1), 4^k].
+//! Each band that holds at least one sphere becomes a level whose cell side
+//! is the smallest power of two at least the band's largest diameter. So:
+//! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
+//! - a cell is at most 2× the largest and 8× the smallest diameter it holds;
+//! - the lattice planes lie at multiples of a power of two (exact in binary),
+//!   and only levels that hold spheres exist.
+//!
+//! A factor 4 keeps both the number of levels a ray must walk (three decades
+//! of radii give 5–6 levels) and the number of spheres per cell low: a factor
+//! 2 doubles the levels, a factor 16 crowds the cells with small spheres. A
+//! level spans only the bounding box of its own spheres, and is coarsened when
+//! that box would need more than 2²¹ cells on a side.
+//!
+//! # Why the pad
+//! The grid must return what brute force returns, and brute force reports what
+//! the rounded hit test says, which may be a grazing "hit" a tiny bit outside
+//! the true surface. In the unit-sphere frame the test works on `f = (o − C)/S`,
+//! whose rounding error is about `u·|f|` (u = unit roundoff of `R`); a false
+//! hit therefore lies within `c·u·|o − C|·(s_max/s_min)` of the surface. Every
+//! ray the renderer traces starts inside the scene's bounding box (or at the
+//! eye at the origin), so `|o − C| ≤ 2M`, M the largest coordinate magnitude
+//! of the scene. Near tangency the same error reaches the chord under a square
+//! root: the returned t may precede the true entry by `ρ·√(c·u·|f|)` along the
+//! ray; that is the level's `slack`, which delays stopping instead of enlarging
+//! cells. [`ERROR_SAFETY`] is the `c`, chosen with a wide margin over the ~4
+//! the operation count gives; the property tests check the bound.
+
+use super::table::{
+    block_key, cell_bit, Block, BlockKey, BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS,
+};
+use super::Level;
+use crate::geometry::{Ellipsoid, Real, Vec3Ops};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// The ratio of the largest to the smallest reach a level holds.
+pub const BAND: f64 = 4.0;
+/// How many unit roundoffs of the hit test the pad and slack allow for.
+pub const ERROR_SAFETY: f64 = 64.0;
+/// Relative error of the f64 traversal itself, far below any `R`'s.
+const TRAVERSAL_ROUNDOFF: f64 = 1.0 / (1u64 << 40) as f64;
+/// Most cells per level side.
+const MAX_CELLS_PER_AXIS: f64 = (MAX_BLOCKS_PER_AXIS << BLOCK_SHIFT) as f64 - 2.0;
+
+/// What the build needs to know about one sphere, in f64.
+#[derive(Clone, Copy, Debug)]
+struct Extent {
+    center: DVec3,
+    /// Bounding radius plus the pad.
+    reach: f64,
+    /// How far along a ray a rounded hit may precede the true one.
+    slack: f64,
+}
+
+impl Extent {
+    fn of<R: Real>(shape: &Ellipsoid<R>, m: f64) -> Extent {
+        let u = R::UNIT_ROUNDOFF.to_f64() * ERROR_SAFETY;
+        let center = shape.center.to_dvec3();
+        let scale = shape.scale.to_dvec3().abs();
+        let (rho, thinnest) = (scale.max_element(), scale.min_element());
+        let far = 2.0 * m / thinnest;
+        let pad = u * 2.0 * m * (rho / thinnest) + TRAVERSAL_ROUNDOFF * m;
+        let slack = rho * (u * far).sqrt() + pad;
+        Extent {
+            center,
+            reach: rho + pad,
+            slack,
+        }
+    }
+
+    fn band(&self) -> i32 {
+        ((2.0 * self.reach).log2() / BAND.log2()).ceil() as i32
+    }
+}
+
+/// The levels of `shapes`, coarsest first.
+pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Vec<Level> {
+    let m = shapes
+        .par_iter()
+        .map(|s| (s.center.to_dvec3().abs() + s.scale.to_dvec3().abs()).max_element())
+        .reduce(|| 0.0, f64::max);
+    if !m.is_finite() {
+        // Only finite scenes get an index; the parser guarantees this one.
+        return Vec::new();
+    }
+    let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
+    let mut bands: BTreeMap<i32, Vec<u32>> = BTreeMap::new();
+    for (id, e) in extents.iter().enumerate() {
+        bands.entry(e.band()).or_default().push(id as u32);
+    }
+    bands
+        .into_values()
+        .rev()
+        .map(|ids| build_level(&extents, &ids))
+        .collect()
+}
+
+fn build_level(extents: &[Extent], ids: &[u32]) -> Level {
+    let (lo, hi, reach, slack) = ids
+        .par_iter()
+        .map(|&id| {
+            let e = &extents[id as usize];
+            (e.center - e.reach, e.center + e.reach, e.reach, e.slack)
+        })
+        .reduce(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0, 0.0),
+            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2.max(b.2), a.3.max(b.3)),
+        );
+    let mut cell = (2.0 * reach).log2().ceil().exp2();
+    while (hi - lo).max_element() / cell > MAX_CELLS_PER_AXIS {
+        cell *= 2.0;
+    }
+    // The lattice is anchored at a multiple of the cell side.
+    let lo = (lo / cell).floor() * cell;
+    let dims = ((hi - lo) / cell).floor().as_i64vec3() + 1;
+    let cell_of = |p: f64, axis: usize| -> i64 {
+        (((p - lo[axis]) / cell).floor() as i64).clamp(0, dims[axis] - 1)
+    };
+    let mut pairs: Vec<(u64, u32)> = ids
+        .par_iter()
+        .flat_map_iter(|&id| {
+            let e = &extents[id as usize];
+            let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
+            let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
+            (a[0]..=b[0]).flat_map(move |x| {
+                (a[1]..=b[1])
+                    .flat_map(move |y| (a[2]..=b[2]).map(move |z| (sort_key([x, y, z]), id)))
+            })
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    let (blocks, cell_start, candidates) = compress(&pairs);
+    Level {
+        cell,
+        origin: lo,
+        dims: dims.to_array(),
+        slack,
+        table: BlockTable::new(&blocks),
+        cell_start,
+        ids: candidates,
+    }
+}
+
+/// Orders pairs by block, then by cell bit within the block, which is the
+/// order the rank in a block's mask counts cells in.
+fn sort_key(c: [i64; 3]) -> u64 {
+    block_key(c.map(|v| v >> BLOCK_SHIFT)) << 6 | u64::from(cell_bit(c))
+}
+
+/// From sorted (cell, id) pairs to the blocks, the CSR offsets of the
+/// occupied cells, and the flat id array.
+fn compress(pairs: &[(u64, u32)]) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
+    let ids: Vec<u32> = pairs.par_iter().map(|&(_, id)| id).collect();
+    let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
+    let mut cell_start: Vec<u32> = Vec::new();
+    let mut previous = u64::MAX;
+    for (i, &(key, _)) in pairs.iter().enumerate() {
+        if key == previous {
+            continue;
+        }
+        previous = key;
+        let (block, bit) = (key >> 6, key & 63);
+        if blocks.last().is_none_or(|&(b, _)| b != block) {
+            let first_cell = cell_start.len() as u32;
+            blocks.push((
+                block,
+                Block {
+                    occupied: 0,
+                    first_cell,
+                },
+            ));
+        }
+        if let Some((_, b)) = blocks.last_mut() {
+            b.occupied |= 1 << bit;
+        }
+        cell_start.push(i as u32);
+    }
+    cell_start.push(pairs.len() as u32);
+    (blocks, cell_start, ids)
+}
