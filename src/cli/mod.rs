@@ -1,6 +1,8 @@
 //! The command line: argument parsing, dispatch, and exit codes.
 //! Each subcommand's arguments live next to the code that runs it.
 
+mod bench;
+mod gen;
 mod render;
 
 use clap::{Parser, Subcommand};
@@ -22,6 +24,10 @@ struct Cli {
 enum Command {
     /// Render a scene file to PPM or PNG.
     Render(render::RenderArgs),
+    /// Write a random scene (uniform, mixed or clustered) in the classic dialect.
+    Gen(gen::GenArgs),
+    /// Measure parse, index build and ray speed against brute force.
+    Bench(bench::BenchArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -68,6 +74,8 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Gen(args) => gen::run(args),
+        Command::Bench(args) => bench::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

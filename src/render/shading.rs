@@ -300,14 +300,14 @@ mod tests {
     ) {
         let n = V::Z;
         let d = V::new(1.0, 0.0, -1.0).normalize();
-        let t = refract(d, n, 1.0 / 1.5).unwrap();
+        let t = refract::<f64>(d, n, 1.0 / 1.5).unwrap();
         let sin_t = t.x / t.length();
         assert!(
             (sin_t - d.x / 1.5).abs() < 1e-12,
             "Snell: sin θt = sin θi / 1.5"
         );
         // Leaving glass at 45° (critical angle ≈ 41.8°) reflects totally.
-        assert_eq!(refract(d, n, 1.5), None);
+        assert_eq!(refract::<f64>(d, n, 1.5), None);
         assert_eq!(refract(-n, n, 1.5), Some(-n), "head-on passes straight");
     }
 
