@@ -28,7 +28,8 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
             for (name, distribution, spheres) in builtin_names() {
                 eprintln!("bench: {name}");
                 let text = builtin_scene(distribution, spheres);
-                let result = bench_text(&name, &text).map_err(|e| CliError::Failed(e.to_string()))?;
+                let result =
+                    bench_text(&name, &text).map_err(|e| CliError::Failed(e.to_string()))?;
                 results.push(result);
             }
         } else {
@@ -45,8 +46,8 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         Ok(())
     })?;
     if args.json {
-        let json = serde_json::to_string_pretty(&results)
-            .map_err(|e| CliError::Failed(e.to_string()))?;
+        let json =
+            serde_json::to_string_pretty(&results).map_err(|e| CliError::Failed(e.to_string()))?;
         println!("{json}");
     } else {
         println!("threads: {}\n", pool.current_num_threads());

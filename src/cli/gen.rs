@@ -66,10 +66,14 @@ pub fn run(args: GenArgs) -> Result<(), CliError> {
     let failed = |e: std::io::Error| CliError::Failed(format!("cannot write {display}: {e}"));
     if display == "-" {
         let mut out = BufWriter::new(std::io::stdout().lock());
-        generate(&options, &mut out).and_then(|()| out.flush()).map_err(failed)
+        generate(&options, &mut out)
+            .and_then(|()| out.flush())
+            .map_err(failed)
     } else {
         let file = std::fs::File::create(&args.output).map_err(failed)?;
         let mut out = BufWriter::with_capacity(1 << 20, file);
-        generate(&options, &mut out).and_then(|()| out.flush()).map_err(failed)
+        generate(&options, &mut out)
+            .and_then(|()| out.flush())
+            .map_err(failed)
     }
 }

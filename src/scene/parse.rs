@@ -763,9 +763,25 @@ mod tests {
     #[test]
     fn fast_decimals_match_the_standard_parser() {
         for token in [
-            "0", "-0", "+7", "12.375", "-0.1", ".5", "1.", "0.30000000000000004", "123456789012345",
-            "1234567890123456", "9007199254740993", "0.000001234", "1e5", "-", ".", "1.2.3", "",
-            "nan", "inf",
+            "0",
+            "-0",
+            "+7",
+            "12.375",
+            "-0.1",
+            ".5",
+            "1.",
+            "0.30000000000000004",
+            "123456789012345",
+            "1234567890123456",
+            "9007199254740993",
+            "0.000001234",
+            "1e5",
+            "-",
+            ".",
+            "1.2.3",
+            "",
+            "nan",
+            "inf",
         ] {
             let fast = fast_decimal(token.as_bytes());
             let std = token.parse::<f64>().ok();
@@ -773,7 +789,11 @@ mod tests {
                 assert_eq!(Some(v.to_bits()), std.map(f64::to_bits), "{token}");
             }
         }
-        assert_eq!(fast_decimal(b"1e5"), None, "exponents go to the standard parser");
+        assert_eq!(
+            fast_decimal(b"1e5"),
+            None,
+            "exponents go to the standard parser"
+        );
     }
 
     proptest! {
@@ -806,7 +826,14 @@ mod tests {
         // A missing directive is reported at the last line, blank lines included.
         let missing = format!("{}\n\n", &text["NEAR 1\n".len()..]);
         let error = parse(&missing).unwrap_err();
-        assert_eq!(error.line, lines_before + 1, "its lines, less NEAR, and two blank ones");
-        assert!(matches!(error.kind, SceneErrorKind::MissingDirective { .. }));
+        assert_eq!(
+            error.line,
+            lines_before + 1,
+            "its lines, less NEAR, and two blank ones"
+        );
+        assert!(matches!(
+            error.kind,
+            SceneErrorKind::MissingDirective { .. }
+        ));
     }
 }

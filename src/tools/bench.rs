@@ -129,7 +129,11 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
     let started = Instant::now();
     let scene = scene::parse(text).map_err(|e| BenchError::Scene(name.to_owned(), e))?;
     let parse_s = started.elapsed().as_secs_f64();
-    let shapes: Vec<Ellipsoid<f32>> = scene.spheres.par_iter().map(Ellipsoid::from_sphere).collect();
+    let shapes: Vec<Ellipsoid<f32>> = scene
+        .spheres
+        .par_iter()
+        .map(Ellipsoid::from_sphere)
+        .collect();
     let build_s = timed(|| drop(VoxelHashGrid::new(&shapes)));
     let grid = VoxelHashGrid::new(&shapes);
     let eye = eye_rays(&scene);

@@ -221,7 +221,13 @@ fn material(rng: &mut Rng, glass: bool) -> Material {
 /// Writes a whole scene to `out`, one line at a time.
 pub fn generate(options: &GenOptions, out: &mut impl Write) -> io::Result<()> {
     let mut rng = Rng::new(options.seed);
-    writeln!(out, "# voxtrace gen: {} {} spheres, seed {}", options.distribution.name(), options.spheres, options.seed)?;
+    writeln!(
+        out,
+        "# voxtrace gen: {} {} spheres, seed {}",
+        options.distribution.name(),
+        options.spheres,
+        options.seed
+    )?;
     writeln!(out, "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1")?;
     writeln!(out, "RES {} {}", options.width, options.height)?;
     writeln!(out, "BACK 0.05 0.05 0.1\nAMBIENT 0.4 0.4 0.4")?;

@@ -4,18 +4,23 @@
 //! A sphere's reach is its bounding radius ρ (largest scale) plus a pad that
 //! covers the rounding of the hit test (below). Diameters `2·reach` fall into
 //! bands of a factor [`BAND`] = 4: band k holds diameters in (4^(k−1), 4^k].
-//! Each band that holds at least one sphere becomes a level whose cell side
-//! is the smallest power of two at least the band's largest diameter. So:
+//! Each band that holds at least one sphere gets a cell side: the smallest
+//! power of two at least the band's largest diameter, doubled while the
+//! band's sphere centres still number at most [`MAX_CENTRES_PER_CELL`] per
+//! occupied cell (estimated by linear counting). Bands whose sides come out
+//! equal share one level. So:
 //! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
-//! - a cell is at most 2× the largest and 8× the smallest diameter it holds;
+//! - in a dense band a cell is at most 2× the largest and 8× the smallest
+//!   diameter it holds; in a sparse band a cell holds about one or two
+//!   spheres, so a ray does not cross many empty cells between two spheres;
 //! - the lattice planes lie at multiples of a power of two (exact in binary),
 //!   and only levels that hold spheres exist.
 //!
-//! A factor 4 keeps both the number of levels a ray must walk (three decades
-//! of radii give 5–6 levels) and the number of spheres per cell low: a factor
-//! 2 doubles the levels, a factor 16 crowds the cells with small spheres. A
-//! level spans only the bounding box of its own spheres, and is coarsened when
-//! that box would need more than 2²¹ cells on a side.
+//! A factor 4 keeps both the number of bands (three decades of radii give 5–6)
+//! and the number of spheres per cell low: a factor 2 doubles the bands, a
+//! factor 16 crowds the cells with small spheres. A level spans only the
+//! bounding box of its own spheres, and is coarsened when that box would need
+//! more than 2²¹ cells on a side.
 //!
 //! # Why the pad
 //! The grid must return what brute force returns, and brute force reports what
@@ -80,6 +85,53 @@ impl Extent {
     }
 }
 
+/// How many times a sparse level's cells may double beyond the sphere size.
+const MAX_COARSENING: usize = 16;
+/// A level's cells double while the mean number of sphere centres per
+/// occupied cell stays at most this.
+const MAX_CENTRES_PER_CELL: f64 = 2.0;
+/// Bits of the bitmap that estimates how many cells the centres occupy.
+const OCCUPANCY_BITS: usize = 1 << 22;
+
+/// The mean number of sphere centres per occupied cell of side `cell`.
+///
+/// The occupied cells are counted by linear counting (Whang et al. 1990):
+/// hash every centre's cell into a bitmap of m bits; with z bits left clear,
+/// `m·ln(m/z)` estimates the number of distinct cells, within a few percent
+/// while they number less than a few times m.
+fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
+    const WORDS: usize = OCCUPANCY_BITS / 64;
+    let bitmap = ids
+        .par_chunks(1 << 16)
+        .map(|chunk| {
+            let mut bits = vec![0u64; WORDS];
+            for &id in chunk {
+                let c = (extents[id as usize].center / cell).floor().as_i64vec3();
+                let key = (c.x as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                    ^ (c.y as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+                    ^ (c.z as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
+                let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 42;
+                bits[h as usize / 64] |= 1 << (h % 64);
+            }
+            bits
+        })
+        .reduce(
+            || vec![0u64; WORDS],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
+                a
+            },
+        );
+    let clear = bitmap
+        .iter()
+        .map(|w| w.count_zeros() as f64)
+        .sum::<f64>()
+        .max(1.0);
+    let m = OCCUPANCY_BITS as f64;
+    let occupied = m * (m / clear).ln();
+    ids.len() as f64 / occupied.max(1.0)
+}
+
 /// The levels of `shapes`, coarsest first.
 pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Vec<Level> {
     let m = shapes
@@ -95,25 +147,54 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Vec<Level> {
     for (id, e) in extents.iter().enumerate() {
         bands.entry(e.band()).or_default().push(id as u32);
     }
-    bands
-        .into_values()
+    // Bands whose chosen cells come out equal share one level: walking two
+    // identical lattices would cost twice for nothing.
+    let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
+    for ids in bands.into_values() {
+        let cell = choose_cell(&extents, &ids);
+        by_cell.entry(cell.to_bits()).or_default().extend(ids);
+    }
+    by_cell
+        .into_iter()
         .rev()
-        .map(|ids| build_level(&extents, &ids))
+        .map(|(cell, mut ids)| {
+            ids.sort_unstable();
+            build_level(&extents, &ids, f64::from_bits(cell))
+        })
         .collect()
 }
 
-fn build_level(extents: &[Extent], ids: &[u32]) -> Level {
-    let (lo, hi, reach, slack) = ids
+/// The cell side of a band: the smallest power of two at least its largest
+/// diameter, doubled while cells stay sparse.
+fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
+    let reach = ids
+        .par_iter()
+        .map(|&id| extents[id as usize].reach)
+        .reduce(|| 0.0, f64::max);
+    let mut cell = (2.0 * reach).log2().ceil().exp2();
+    // Sparse bands: coarser cells while a cell still holds few centres, so
+    // that rays cross fewer empty cells on their way to a sphere.
+    for _ in 0..MAX_COARSENING {
+        let coarser = 2.0 * cell;
+        if centres_per_occupied_cell(extents, ids, coarser) > MAX_CENTRES_PER_CELL {
+            break;
+        }
+        cell = coarser;
+    }
+    cell
+}
+
+fn build_level(extents: &[Extent], ids: &[u32], mut cell: f64) -> Level {
+    let (lo, hi, slack) = ids
         .par_iter()
         .map(|&id| {
             let e = &extents[id as usize];
-            (e.center - e.reach, e.center + e.reach, e.reach, e.slack)
+            (e.center - e.reach, e.center + e.reach, e.slack)
         })
         .reduce(
-            || (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0, 0.0),
-            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2.max(b.2), a.3.max(b.3)),
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0),
+            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2.max(b.2)),
         );
-    let mut cell = (2.0 * reach).log2().ceil().exp2();
     while (hi - lo).max_element() / cell > MAX_CELLS_PER_AXIS {
         cell *= 2.0;
     }
