@@ -135,7 +135,7 @@ impl Level {
                 _ => {}
             }
             let a = first_axis(&t_next);
-            if !(t_next[a] <= limit) || t_next[a] == f64::INFINITY {
+            if t_next[a] > limit || t_next[a] == f64::INFINITY {
                 return;
             }
             c[a] += step[a];
@@ -165,7 +165,7 @@ impl Level {
         let exits = [0, 1, 2].map(|a| self.next_crossing(ray, a, last[a], step[a]));
         let a = first_axis(&exits);
         let t_exit = exits[a];
-        if !(t_exit <= limit) || t_exit == f64::INFINITY {
+        if t_exit > limit || t_exit == f64::INFINITY {
             return false;
         }
         for k in 0..3 {
