@@ -33,6 +33,14 @@ impl Ray64 {
     }
 }
 
+/// ⌊x⌋ as an integer (saturating), without the libm call `f64::floor`
+/// becomes on CPUs the build does not assume SSE4.1 for.
+#[inline(always)]
+fn floor_to_int(x: f64) -> i64 {
+    let truncated = x as i64;
+    truncated - i64::from((truncated as f64) > x)
+}
+
 /// The axis whose next crossing comes first.
 #[inline(always)]
 fn first_axis(t: &[f64; 3]) -> usize {
@@ -89,7 +97,7 @@ impl Level {
     #[inline(always)]
     fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
         let p = ray.o[axis] + t * ray.d[axis];
-        (((p - self.origin[axis]) / self.cell).floor() as i64).clamp(lo, hi)
+        floor_to_int((p - self.origin[axis]) / self.cell).clamp(lo, hi)
     }
 
     /// Visits, nearest first, the occupied cells the ray crosses within
@@ -108,8 +116,12 @@ impl Level {
             return;
         };
         let step = ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64);
-        let mut c = [0, 1, 2].map(|a| self.cell_at(ray, t0, a, 0, self.dims[a] - 1));
-        let mut t_next = [0, 1, 2].map(|a| self.next_crossing(ray, a, c[a], step[a]));
+        let mut c = [0; 3];
+        let mut t_next = [0.0; 3];
+        for a in 0..3 {
+            c[a] = self.cell_at(ray, t0, a, 0, self.dims[a] - 1);
+            t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
+        }
         let mut cached: Option<(BlockKey, Option<Block>)> = None;
         loop {
             let key = block_key(c.map(|v| v >> BLOCK_SHIFT));
@@ -158,11 +170,15 @@ impl Level {
     ) -> bool {
         let block = c.map(|v| v >> BLOCK_SHIFT << BLOCK_SHIFT);
         // The block's last cell along each axis's direction of travel.
-        let last = [0, 1, 2].map(|a| match step[a] {
-            1 => block[a] + BLOCK_SIDE - 1,
-            _ => block[a],
-        });
-        let exits = [0, 1, 2].map(|a| self.next_crossing(ray, a, last[a], step[a]));
+        let mut exits = [0.0; 3];
+        for a in 0..3 {
+            let last = if step[a] > 0 {
+                block[a] + BLOCK_SIDE - 1
+            } else {
+                block[a]
+            };
+            exits[a] = self.next_crossing(ray, a, last, step[a]);
+        }
         let a = first_axis(&exits);
         let t_exit = exits[a];
         if t_exit > limit || t_exit == f64::INFINITY {
