@@ -101,8 +101,13 @@ const OCCUPANCY_BITS: usize = 1 << 22;
 /// while they number less than a few times m.
 fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
     const WORDS: usize = OCCUPANCY_BITS / 64;
+    // One bitmap per thread's share, not per small chunk: a bitmap is 512 KiB.
+    let share = ids
+        .len()
+        .div_ceil(2 * rayon::current_num_threads())
+        .max(1 << 16);
     let bitmap = ids
-        .par_chunks(1 << 16)
+        .par_chunks(share)
         .map(|chunk| {
             let mut bits = vec![0u64; WORDS];
             for &id in chunk {
