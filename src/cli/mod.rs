@@ -1,6 +1,8 @@
 //! The command line: argument parsing, dispatch, and exit codes.
 //! Each subcommand's arguments live next to the code that runs it.
 
+mod bench;
+mod gen;
 mod load;
 mod render;
 mod serve;
@@ -28,6 +30,10 @@ enum Command {
     Serve(serve::ServeArgs),
     /// Load-test the render service (closed or open loop) and report throughput and latency.
     Load(load::LoadArgs),
+    /// Write a random scene (uniform, mixed or clustered) in the classic dialect.
+    Gen(gen::GenArgs),
+    /// Measure parse, index build and ray speed against brute force.
+    Bench(bench::BenchArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -76,6 +82,8 @@ pub fn main() -> ExitCode {
         Command::Render(args) => render::run(args),
         Command::Serve(args) => serve::run(args),
         Command::Load(args) => load::run(args),
+        Command::Gen(args) => gen::run(args),
+        Command::Bench(args) => bench::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,11 +1,14 @@
 //! Candidate search: which sphere a ray meets first, and whether it meets any.
 //!
-//! The renderer sees only [`SphereIndex`]. [`BruteForce`] tests every sphere;
-//! it is the oracle the faster indexes are checked against.
+//! The renderer sees only [`SphereIndex`]. [`VoxelHashGrid`] is the fast
+//! index; [`BruteForce`] tests every sphere and is the oracle the grid is
+//! checked against.
 
 mod brute;
+pub mod grid;
 
 pub use brute::BruteForce;
+pub use grid::{EmptySpace, VoxelHashGrid};
 
 use crate::geometry::{Ray, Real};
 

@@ -7,7 +7,7 @@ mod shading;
 pub use camera::PixelSampler;
 
 use crate::geometry::{Ellipsoid, Real};
-use crate::index::{BruteForce, SphereIndex};
+use crate::index::{BruteForce, SphereIndex, VoxelHashGrid};
 use crate::limits;
 use crate::output::Image;
 use crate::scene::{Dialect, Scene};
@@ -29,8 +29,10 @@ pub enum SpecularModel {
 /// Which candidate search to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum IndexKind {
-    /// Test every sphere (the exactness oracle).
+    /// The multi-resolution voxel hash grid.
     #[default]
+    Grid,
+    /// Test every sphere (the exactness oracle).
     Brute,
 }
 
@@ -149,6 +151,10 @@ pub fn render_in<R: Real>(
     let started = Instant::now();
     let shapes: Vec<Ellipsoid<R>> = scene.spheres.iter().map(Ellipsoid::from_sphere).collect();
     match options.index {
+        IndexKind::Grid => {
+            let index = VoxelHashGrid::new(&shapes);
+            render_with(scene, &shapes, &index, options, started.elapsed(), progress)
+        }
         IndexKind::Brute => {
             let index = BruteForce::new(&shapes);
             render_with(scene, &shapes, &index, options, started.elapsed(), progress)

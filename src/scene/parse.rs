@@ -5,17 +5,111 @@
 use super::{Camera, Dialect, Light, Material, Scene, SceneError, SceneErrorKind, Sphere};
 use crate::limits;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Parses a scene in either dialect. Never panics, whatever the bytes.
+///
+/// Large texts are cut at line ends into chunks whose lines are parsed in
+/// parallel (each line on its own, by [`parse_line`]); the directives are then
+/// folded in file order by one [`SceneBuilder`], so the first error in the
+/// file is the one reported, with its exact line and column, as if parsed
+/// line by line.
 pub fn parse(text: impl AsRef<[u8]>) -> Result<Scene, SceneError> {
+    let text = text.as_ref();
+    let chunks = split_chunks(text);
+    // Lines before each chunk, so every chunk knows its first line's number.
+    let line_counts: Vec<usize> = chunks
+        .par_iter()
+        .map(|chunk| chunk.iter().filter(|&&b| b == b'\n').count())
+        .collect();
+    let first_lines: Vec<usize> = line_counts
+        .iter()
+        .scan(1, |next, &count| {
+            let first = *next;
+            *next += count;
+            Some(first)
+        })
+        .collect();
+    let parsed: Vec<ParsedChunk> = chunks
+        .par_iter()
+        .zip(&first_lines)
+        .map(|(chunk, &first)| parse_chunk(chunk, first))
+        .collect();
     let mut builder = SceneBuilder::default();
     let mut line_count = 0;
-    for (i, line) in split_lines(text.as_ref()).enumerate() {
-        line_count = i + 1;
-        let directive = parse_line(i + 1, line).map_err(|e| builder.explain(i + 1, line, e))?;
-        builder.apply(i + 1, directive)?;
+    for ((chunk, text), (&first, &newlines)) in parsed
+        .into_iter()
+        .zip(&chunks)
+        .zip(first_lines.iter().zip(&line_counts))
+    {
+        builder.reserve(chunk.spheres);
+        for (line, directive) in chunk.directives {
+            builder.apply(line, directive)?;
+        }
+        if let Some(error) = chunk.error {
+            let line = split_lines(text)
+                .nth(error.line - first)
+                .unwrap_or_default();
+            return Err(builder.explain(error.line, line, error));
+        }
+        // A last line without a newline still counts.
+        let unterminated = usize::from(!text.is_empty() && !text.ends_with(b"\n"));
+        line_count = first + newlines + unterminated - 1;
     }
     builder.finish(line_count.max(1))
+}
+
+/// Bytes per chunk of parallel parsing; smaller texts parse in one chunk.
+const CHUNK_BYTES: usize = 1 << 20;
+
+/// Cuts `text` into chunks that end just after a newline (the last chunk
+/// ends where the text does).
+fn split_chunks(text: &[u8]) -> Vec<&[u8]> {
+    let mut chunks = Vec::with_capacity(text.len() / CHUNK_BYTES + 1);
+    let mut rest = text;
+    while rest.len() > CHUNK_BYTES {
+        match rest[CHUNK_BYTES..].iter().position(|&b| b == b'\n') {
+            Some(i) => {
+                let (head, tail) = rest.split_at(CHUNK_BYTES + i + 1);
+                chunks.push(head);
+                rest = tail;
+            }
+            None => break,
+        }
+    }
+    chunks.push(rest);
+    chunks
+}
+
+/// The directives of one chunk up to its first error.
+struct ParsedChunk {
+    directives: Vec<(usize, Directive)>,
+    spheres: usize,
+    error: Option<SceneError>,
+}
+
+/// Parses the lines of a chunk whose first line is number `first`, stopping at the first error.
+fn parse_chunk(chunk: &[u8], first: usize) -> ParsedChunk {
+    let mut parsed = ParsedChunk {
+        directives: Vec::new(),
+        spheres: 0,
+        error: None,
+    };
+    for (i, line) in split_lines(chunk).enumerate() {
+        let number = first + i;
+        match parse_line(number, line) {
+            Ok(Directive::Blank) => {}
+            Ok(directive) => {
+                parsed.spheres += usize::from(matches!(directive, Directive::Sphere(..)));
+                parsed.directives.push((number, directive));
+            }
+            Err(error) => {
+                parsed.error = Some(error);
+                break;
+            }
+        }
+    }
+    parsed
 }
 
 /// The lines of `text`, without their LF or CRLF endings.
@@ -227,9 +321,8 @@ impl<'a> Tokens<'a> {
                 .take(40)
                 .collect::<String>()
         };
-        let value: f64 = std::str::from_utf8(token)
-            .ok()
-            .and_then(|s| s.parse().ok())
+        let value: f64 = fast_decimal(token)
+            .or_else(|| std::str::from_utf8(token).ok()?.parse().ok())
             .ok_or_else(|| {
                 self.error_at(
                     offset,
@@ -295,6 +388,46 @@ impl<'a> Tokens<'a> {
             }
         }
     }
+}
+
+/// Powers of ten that f64 holds exactly.
+const EXACT_POWERS_OF_TEN: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// Clinger's fast path for the plain decimals scene files are made of
+/// (`-12.375`, `0.5`, `7`): when the digits, read as an integer m, fit in 53
+/// bits and there are at most 22 after the point, m and 10^k are exact in f64
+/// and one correctly rounded division gives the correctly rounded value.
+/// Anything else (exponents, long mantissas, junk) is left to `str::parse`.
+#[inline]
+fn fast_decimal(token: &[u8]) -> Option<f64> {
+    let (negative, digits) = match token {
+        [b'-', rest @ ..] => (true, rest),
+        [b'+', rest @ ..] => (false, rest),
+        _ => (false, token),
+    };
+    let (mut mantissa, mut seen, mut after_point, mut point) = (0u64, 0usize, 0usize, false);
+    for &b in digits {
+        match b {
+            b'0'..=b'9' => {
+                mantissa = mantissa * 10 + u64::from(b - b'0');
+                seen += 1;
+                after_point += usize::from(point);
+                if seen > 15 {
+                    return None;
+                }
+            }
+            b'.' if !point => point = true,
+            _ => return None,
+        }
+    }
+    if seen == 0 {
+        return None;
+    }
+    let value = mantissa as f64 / EXACT_POWERS_OF_TEN[after_point];
+    Some(if negative { -value } else { value })
 }
 
 /// A token names a sphere or light unless it reads as a number (or starts like one).
@@ -493,6 +626,12 @@ fn set_once<T>(
 }
 
 impl SceneBuilder {
+    /// Makes room for `more` spheres (capped: a count is only a hint).
+    fn reserve(&mut self, more: usize) {
+        self.spheres
+            .reserve(more.min(limits::MAX_SPHERES.saturating_sub(self.spheres.len())));
+    }
+
     fn apply(&mut self, line: usize, directive: Directive) -> Result<(), SceneError> {
         match directive {
             Directive::Blank => Ok(()),
@@ -637,4 +776,87 @@ fn check_extent(
         high_value: high,
     };
     Err(SceneError { line, column, kind })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn fast_decimals_match_the_standard_parser() {
+        for token in [
+            "0",
+            "-0",
+            "+7",
+            "12.375",
+            "-0.1",
+            ".5",
+            "1.",
+            "0.30000000000000004",
+            "123456789012345",
+            "1234567890123456",
+            "9007199254740993",
+            "0.000001234",
+            "1e5",
+            "-",
+            ".",
+            "1.2.3",
+            "",
+            "nan",
+            "inf",
+        ] {
+            let fast = fast_decimal(token.as_bytes());
+            let std = token.parse::<f64>().ok();
+            if let Some(v) = fast {
+                assert_eq!(Some(v.to_bits()), std.map(f64::to_bits), "{token}");
+            }
+        }
+        assert_eq!(
+            fast_decimal(b"1e5"),
+            None,
+            "exponents go to the standard parser"
+        );
+    }
+
+    proptest! {
+        #[test]
+        fn fast_decimal_is_correctly_rounded(int in 0u64..10_000_000_000, frac in 0usize..12, neg: bool) {
+            let digits = int.to_string();
+            let cut = digits.len().saturating_sub(frac);
+            let token = format!("{}{}.{}", if neg { "-" } else { "" }, &digits[..cut], &digits[cut..]);
+            let fast = fast_decimal(token.as_bytes()).unwrap();
+            prop_assert_eq!(fast.to_bits(), token.parse::<f64>().unwrap().to_bits(), "{}", token);
+        }
+    }
+
+    /// Chunked parsing reports the first error of the file with its exact
+    /// position, and counts lines across chunk boundaries exactly.
+    #[test]
+    fn chunked_parsing_keeps_line_numbers_and_the_first_error() {
+        let mut text = String::from("NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n");
+        let sphere = "SPHERE s 0 0 -5 1 1 1 0.5 0.5 0.5 1 1 1 0 50\n";
+        let lines_before = 6 + 3 * CHUNK_BYTES / sphere.len();
+        for _ in 6..lines_before {
+            text += sphere;
+        }
+        let scene = parse(&text).unwrap();
+        assert_eq!(scene.spheres.len(), lines_before - 6);
+        // Two errors, both far into the file: the first is reported.
+        let bad = format!("{text}SPHERE s 0 0 -5 1 1 1 0.5 0.5 0.5 1 1 1 0 x\n{text}NEAR -1\n");
+        let error = parse(&bad).unwrap_err();
+        assert_eq!((error.line, error.column), (lines_before + 1, 43));
+        // A missing directive is reported at the last line, blank lines included.
+        let missing = format!("{}\n\n", &text["NEAR 1\n".len()..]);
+        let error = parse(&missing).unwrap_err();
+        assert_eq!(
+            error.line,
+            lines_before + 1,
+            "its lines, less NEAR, and two blank ones"
+        );
+        assert!(matches!(
+            error.kind,
+            SceneErrorKind::MissingDirective { .. }
+        ));
+    }
 }

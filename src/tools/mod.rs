@@ -1,3 +1,5 @@
-//! Tools around the renderer: load generation, benchmarks, scene generation.
+//! Tools around the renderer: scene generation, benchmarks, load generation.
 
+pub mod bench;
+pub mod gen;
 pub mod load;

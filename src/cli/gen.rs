@@ -1,0 +1,79 @@
+//! `voxtrace gen`.
+
+use super::CliError;
+use crate::limits;
+use crate::tools::gen::{generate, Distribution, GenOptions};
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct GenArgs {
+    /// Number of spheres.
+    #[arg(long)]
+    spheres: usize,
+    /// How sizes and positions are drawn.
+    #[arg(long, value_enum, default_value_t = Distribution::Uniform)]
+    dist: Distribution,
+    /// Random seed; the same seed gives the same file.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Image width and height.
+    #[arg(long, num_args = 2, value_names = ["W", "H"], default_values_t = [1024, 1024])]
+    res: Vec<u32>,
+    /// Fraction of spheres stretched into ellipsoids.
+    #[arg(long, default_value_t = 0.0)]
+    ellipsoids: f64,
+    /// Fraction of spheres made of glass.
+    #[arg(long, default_value_t = 0.0)]
+    glass: f64,
+    /// Output scene file (`-` for stdout).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(args: GenArgs) -> Result<(), CliError> {
+    let fraction = |name: &str, f: f64| {
+        if (0.0..=1.0).contains(&f) {
+            Ok(f)
+        } else {
+            Err(CliError::Usage(format!("--{name} must be between 0 and 1")))
+        }
+    };
+    let (width, height) = (args.res[0], args.res[1]);
+    let side = 1..=limits::MAX_RESOLUTION;
+    if !side.contains(&width) || !side.contains(&height) {
+        return Err(CliError::Usage(format!(
+            "--res must be between 1 and {} on each side",
+            limits::MAX_RESOLUTION
+        )));
+    }
+    if args.spheres > limits::MAX_SPHERES {
+        return Err(CliError::Usage(format!(
+            "--spheres must be at most {}",
+            limits::MAX_SPHERES
+        )));
+    }
+    let options = GenOptions {
+        spheres: args.spheres,
+        distribution: args.dist,
+        seed: args.seed,
+        width,
+        height,
+        ellipsoids: fraction("ellipsoids", args.ellipsoids)?,
+        glass: fraction("glass", args.glass)?,
+    };
+    let display = args.output.display().to_string();
+    let failed = |e: std::io::Error| CliError::Failed(format!("cannot write {display}: {e}"));
+    if display == "-" {
+        let mut out = BufWriter::new(std::io::stdout().lock());
+        generate(&options, &mut out)
+            .and_then(|()| out.flush())
+            .map_err(failed)
+    } else {
+        let file = std::fs::File::create(&args.output).map_err(failed)?;
+        let mut out = BufWriter::with_capacity(1 << 20, file);
+        generate(&options, &mut out)
+            .and_then(|()| out.flush())
+            .map_err(failed)
+    }
+}

@@ -1,0 +1,273 @@
+//! Building the grid: size classes, levels, and the (cell, sphere) pairs.
+//!
+//! # Which level a sphere goes to
+//! A sphere's reach is its bounding radius ρ (largest scale) plus a pad that
+//! covers the rounding of the hit test (below). Diameters `2·reach` fall into
+//! bands of a factor [`BAND`] = 4: band k holds diameters in (4^(k−1), 4^k].
+//! Each band that holds at least one sphere gets a cell side: the smallest
+//! power of two at least the band's largest diameter, doubled while the
+//! band's sphere centres still number at most [`MAX_CENTRES_PER_CELL`] per
+//! occupied cell (estimated by linear counting). Bands whose sides come out
+//! equal share one level. So:
+//! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
+//! - in a dense band a cell is at most 2× the largest and 8× the smallest
+//!   diameter it holds; in a sparse band a cell holds about one or two
+//!   spheres, so a ray does not cross many empty cells between two spheres;
+//! - the lattice planes lie at multiples of a power of two (exact in binary),
+//!   and only levels that hold spheres exist.
+//!
+//! A factor 4 keeps both the number of bands (three decades of radii give 5–6)
+//! and the number of spheres per cell low: a factor 2 doubles the bands, a
+//! factor 16 crowds the cells with small spheres. A level spans only the
+//! bounding box of its own spheres, and is coarsened when that box would need
+//! more than 2²¹ cells on a side.
+//!
+//! # Why the pad
+//! The grid must return what brute force returns, and brute force reports what
+//! the rounded hit test says, which may be a grazing "hit" a tiny bit outside
+//! the true surface. In the unit-sphere frame the test works on `f = (o − C)/S`,
+//! whose rounding error is about `u·|f|` (u = unit roundoff of `R`); a false
+//! hit therefore lies within `c·u·|o − C|·(s_max/s_min)` of the surface. Every
+//! ray the renderer traces starts inside the scene's bounding box (or at the
+//! eye at the origin), so `|o − C| ≤ 2M`, M the largest coordinate magnitude
+//! of the scene. Near tangency the same error reaches the chord under a square
+//! root: the returned t may precede the true entry by `ρ·√(c·u·|f|)` along the
+//! ray; that is the level's `slack`, which delays stopping instead of enlarging
+//! cells. [`ERROR_SAFETY`] is the `c`, chosen with a wide margin over the ~4
+//! the operation count gives; the property tests check the bound.
+
+use super::table::{
+    block_key, cell_bit, Block, BlockKey, BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS,
+};
+use super::Level;
+use crate::geometry::{Ellipsoid, Real, Vec3Ops};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// The ratio of the largest to the smallest reach a level holds.
+pub const BAND: f64 = 4.0;
+/// How many unit roundoffs of the hit test the pad and slack allow for.
+pub const ERROR_SAFETY: f64 = 64.0;
+/// Relative error of the f64 traversal itself, far below any `R`'s.
+const TRAVERSAL_ROUNDOFF: f64 = 1.0 / (1u64 << 40) as f64;
+/// Most cells per level side.
+const MAX_CELLS_PER_AXIS: f64 = (MAX_BLOCKS_PER_AXIS << BLOCK_SHIFT) as f64 - 2.0;
+
+/// What the build needs to know about one sphere, in f64.
+#[derive(Clone, Copy, Debug)]
+struct Extent {
+    center: DVec3,
+    /// Bounding radius plus the pad.
+    reach: f64,
+    /// How far along a ray a rounded hit may precede the true one.
+    slack: f64,
+}
+
+impl Extent {
+    fn of<R: Real>(shape: &Ellipsoid<R>, m: f64) -> Extent {
+        let u = R::UNIT_ROUNDOFF.to_f64() * ERROR_SAFETY;
+        let center = shape.center.to_dvec3();
+        let scale = shape.scale.to_dvec3().abs();
+        let (rho, thinnest) = (scale.max_element(), scale.min_element());
+        let far = 2.0 * m / thinnest;
+        let pad = u * 2.0 * m * (rho / thinnest) + TRAVERSAL_ROUNDOFF * m;
+        let slack = rho * (u * far).sqrt() + pad;
+        Extent {
+            center,
+            reach: rho + pad,
+            slack,
+        }
+    }
+
+    fn band(&self) -> i32 {
+        ((2.0 * self.reach).log2() / BAND.log2()).ceil() as i32
+    }
+}
+
+/// How many times a sparse level's cells may double beyond the sphere size.
+const MAX_COARSENING: usize = 16;
+/// A level's cells double while the mean number of sphere centres per
+/// occupied cell stays at most this.
+const MAX_CENTRES_PER_CELL: f64 = 2.0;
+/// Bits of the bitmap that estimates how many cells the centres occupy.
+const OCCUPANCY_BITS: usize = 1 << 22;
+
+/// The mean number of sphere centres per occupied cell of side `cell`.
+///
+/// The occupied cells are counted by linear counting (Whang et al. 1990):
+/// hash every centre's cell into a bitmap of m bits; with z bits left clear,
+/// `m·ln(m/z)` estimates the number of distinct cells, within a few percent
+/// while they number less than a few times m.
+fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
+    const WORDS: usize = OCCUPANCY_BITS / 64;
+    // One bitmap per thread's share, not per small chunk: a bitmap is 512 KiB.
+    let share = ids
+        .len()
+        .div_ceil(2 * rayon::current_num_threads())
+        .max(1 << 16);
+    let bitmap = ids
+        .par_chunks(share)
+        .map(|chunk| {
+            let mut bits = vec![0u64; WORDS];
+            for &id in chunk {
+                let c = (extents[id as usize].center / cell).floor().as_i64vec3();
+                let key = (c.x as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                    ^ (c.y as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+                    ^ (c.z as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
+                let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 42;
+                bits[h as usize / 64] |= 1 << (h % 64);
+            }
+            bits
+        })
+        .reduce(
+            || vec![0u64; WORDS],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
+                a
+            },
+        );
+    let clear = bitmap
+        .iter()
+        .map(|w| w.count_zeros() as f64)
+        .sum::<f64>()
+        .max(1.0);
+    let m = OCCUPANCY_BITS as f64;
+    let occupied = m * (m / clear).ln();
+    ids.len() as f64 / occupied.max(1.0)
+}
+
+/// The levels of `shapes`, coarsest first.
+pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Vec<Level> {
+    let m = shapes
+        .par_iter()
+        .map(|s| (s.center.to_dvec3().abs() + s.scale.to_dvec3().abs()).max_element())
+        .reduce(|| 0.0, f64::max);
+    if !m.is_finite() {
+        // Only finite scenes get an index; the parser guarantees this one.
+        return Vec::new();
+    }
+    let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
+    let mut bands: BTreeMap<i32, Vec<u32>> = BTreeMap::new();
+    for (id, e) in extents.iter().enumerate() {
+        bands.entry(e.band()).or_default().push(id as u32);
+    }
+    // Bands whose chosen cells come out equal share one level: walking two
+    // identical lattices would cost twice for nothing.
+    let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
+    for ids in bands.into_values() {
+        let cell = choose_cell(&extents, &ids);
+        by_cell.entry(cell.to_bits()).or_default().extend(ids);
+    }
+    by_cell
+        .into_iter()
+        .rev()
+        .map(|(cell, mut ids)| {
+            ids.sort_unstable();
+            build_level(&extents, &ids, f64::from_bits(cell))
+        })
+        .collect()
+}
+
+/// The cell side of a band: the smallest power of two at least its largest
+/// diameter, doubled while cells stay sparse.
+fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
+    let reach = ids
+        .par_iter()
+        .map(|&id| extents[id as usize].reach)
+        .reduce(|| 0.0, f64::max);
+    let mut cell = (2.0 * reach).log2().ceil().exp2();
+    // Sparse bands: coarser cells while a cell still holds few centres, so
+    // that rays cross fewer empty cells on their way to a sphere.
+    for _ in 0..MAX_COARSENING {
+        let coarser = 2.0 * cell;
+        if centres_per_occupied_cell(extents, ids, coarser) > MAX_CENTRES_PER_CELL {
+            break;
+        }
+        cell = coarser;
+    }
+    cell
+}
+
+fn build_level(extents: &[Extent], ids: &[u32], mut cell: f64) -> Level {
+    let (lo, hi, slack) = ids
+        .par_iter()
+        .map(|&id| {
+            let e = &extents[id as usize];
+            (e.center - e.reach, e.center + e.reach, e.slack)
+        })
+        .reduce(
+            || (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0),
+            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2.max(b.2)),
+        );
+    while (hi - lo).max_element() / cell > MAX_CELLS_PER_AXIS {
+        cell *= 2.0;
+    }
+    // The lattice is anchored at a multiple of the cell side.
+    let lo = (lo / cell).floor() * cell;
+    let dims = ((hi - lo) / cell).floor().as_i64vec3() + 1;
+    let cell_of = |p: f64, axis: usize| -> i64 {
+        (((p - lo[axis]) / cell).floor() as i64).clamp(0, dims[axis] - 1)
+    };
+    let mut pairs: Vec<(u64, u32)> = ids
+        .par_iter()
+        .flat_map_iter(|&id| {
+            let e = &extents[id as usize];
+            let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
+            let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
+            (a[0]..=b[0]).flat_map(move |x| {
+                (a[1]..=b[1])
+                    .flat_map(move |y| (a[2]..=b[2]).map(move |z| (sort_key([x, y, z]), id)))
+            })
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    let (blocks, cell_start, candidates) = compress(&pairs);
+    Level {
+        cell,
+        origin: lo,
+        dims: dims.to_array(),
+        slack,
+        table: BlockTable::new(&blocks),
+        cell_start,
+        ids: candidates,
+    }
+}
+
+/// Orders pairs by block, then by cell bit within the block, which is the
+/// order the rank in a block's mask counts cells in.
+fn sort_key(c: [i64; 3]) -> u64 {
+    block_key(c.map(|v| v >> BLOCK_SHIFT)) << 6 | u64::from(cell_bit(c))
+}
+
+/// From sorted (cell, id) pairs to the blocks, the CSR offsets of the
+/// occupied cells, and the flat id array.
+fn compress(pairs: &[(u64, u32)]) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
+    let ids: Vec<u32> = pairs.par_iter().map(|&(_, id)| id).collect();
+    let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
+    let mut cell_start: Vec<u32> = Vec::new();
+    let mut previous = u64::MAX;
+    for (i, &(key, _)) in pairs.iter().enumerate() {
+        if key == previous {
+            continue;
+        }
+        previous = key;
+        let (block, bit) = (key >> 6, key & 63);
+        if blocks.last().is_none_or(|&(b, _)| b != block) {
+            let first_cell = cell_start.len() as u32;
+            blocks.push((
+                block,
+                Block {
+                    occupied: 0,
+                    first_cell,
+                },
+            ));
+        }
+        if let Some((_, b)) = blocks.last_mut() {
+            b.occupied |= 1 << bit;
+        }
+        cell_start.push(i as u32);
+    }
+    cell_start.push(pairs.len() as u32);
+    (blocks, cell_start, ids)
+}

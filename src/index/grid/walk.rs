@@ -1,0 +1,208 @@
+//! Amanatides & Woo's 3D-DDA over one level, in f64.
+//!
+//! The walk keeps the integer cell and, per axis, the t at which the ray
+//! crosses the next cell boundary. That t is always recomputed from the
+//! integer index, `(origin + i·h − o) / d`, never accumulated, so it cannot
+//! drift over a million cells. An axis the ray runs parallel to (d = ±0)
+//! never steps: its next crossing is +∞. Empty blocks are crossed in one
+//! step: the walk moves to the first cell of the next block along the ray.
+
+use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT, BLOCK_SIDE};
+use super::{EmptySpace, Level};
+use crate::geometry::{Ray, Real, Vec3Ops};
+
+/// A ray in f64, with its length for turning distances into t.
+pub struct Ray64 {
+    o: [f64; 3],
+    d: [f64; 3],
+    inv: [f64; 3],
+    pub length: f64,
+}
+
+impl Ray64 {
+    /// None for a zero, infinite or NaN direction, which hits nothing.
+    pub fn new<R: Real>(ray: &Ray<R>) -> Option<Ray64> {
+        let (o, d) = (ray.origin.to_dvec3(), ray.dir.to_dvec3());
+        let length = d.length();
+        (length > 0.0 && length.is_finite() && o.is_finite()).then(|| Ray64 {
+            o: o.to_array(),
+            d: d.to_array(),
+            inv: d.recip().to_array(),
+            length,
+        })
+    }
+}
+
+/// ⌊x⌋ as an integer (saturating), without the libm call `f64::floor`
+/// becomes on CPUs the build does not assume SSE4.1 for.
+#[inline(always)]
+fn floor_to_int(x: f64) -> i64 {
+    let truncated = x as i64;
+    truncated - i64::from((truncated as f64) > x)
+}
+
+/// The axis whose next crossing comes first.
+#[inline(always)]
+fn first_axis(t: &[f64; 3]) -> usize {
+    if t[0] <= t[1] {
+        if t[0] <= t[2] {
+            0
+        } else {
+            2
+        }
+    } else if t[1] <= t[2] {
+        1
+    } else {
+        2
+    }
+}
+
+impl Level {
+    /// The t at which the ray crosses the plane between cells `i − 1` and `i` on `axis`.
+    #[inline(always)]
+    fn plane_t(&self, ray: &Ray64, axis: usize, i: i64) -> f64 {
+        (self.origin[axis] + i as f64 * self.cell - ray.o[axis]) * ray.inv[axis]
+    }
+
+    /// The t of the next boundary crossing on `axis` from cell `c` stepping by `step`.
+    #[inline(always)]
+    fn next_crossing(&self, ray: &Ray64, axis: usize, c: i64, step: i64) -> f64 {
+        match step {
+            0 => f64::INFINITY,
+            1 => self.plane_t(ray, axis, c + 1),
+            _ => self.plane_t(ray, axis, c),
+        }
+    }
+
+    /// The part of [t_lo, t_hi] the ray spends inside this level's box.
+    fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (t_lo, t_hi);
+        for a in 0..3 {
+            let lo = self.origin[a];
+            let hi = lo + self.dims[a] as f64 * self.cell;
+            if ray.d[a] == 0.0 {
+                if !(ray.o[a] >= lo && ray.o[a] <= hi) {
+                    return None;
+                }
+            } else {
+                let (ta, tb) = ((lo - ray.o[a]) * ray.inv[a], (hi - ray.o[a]) * ray.inv[a]);
+                t0 = t0.max(ta.min(tb));
+                t1 = t1.min(ta.max(tb));
+            }
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.
+    #[inline(always)]
+    fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
+        let p = ray.o[axis] + t * ray.d[axis];
+        floor_to_int((p - self.origin[axis]) / self.cell).clamp(lo, hi)
+    }
+
+    /// Visits, nearest first, the occupied cells the ray crosses within
+    /// [t_lo, t_hi]. `visit` gets each cell's sphere ids and returns the t
+    /// beyond which nothing more is wanted; the walk stops before entering a
+    /// cell that starts beyond it.
+    pub fn walk(
+        &self,
+        ray: &Ray64,
+        t_lo: f64,
+        t_hi: f64,
+        empty_space: EmptySpace,
+        mut visit: impl FnMut(&[u32]) -> f64,
+    ) {
+        let Some((t0, mut limit)) = self.clip(ray, t_lo, t_hi) else {
+            return;
+        };
+        let step = ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64);
+        let mut c = [0; 3];
+        let mut t_next = [0.0; 3];
+        for a in 0..3 {
+            c[a] = self.cell_at(ray, t0, a, 0, self.dims[a] - 1);
+            t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
+        }
+        let mut cached: Option<(BlockKey, Option<Block>)> = None;
+        loop {
+            let key = block_key(c.map(|v| v >> BLOCK_SHIFT));
+            let block = match cached {
+                Some((k, b)) if k == key && empty_space == EmptySpace::SkipBlocks => b,
+                _ => {
+                    let b = self.table.get(key);
+                    cached = Some((key, b));
+                    b
+                }
+            };
+            match block {
+                None if empty_space == EmptySpace::SkipBlocks => {
+                    if !self.leave_block(ray, &mut c, &mut t_next, step, limit) {
+                        return;
+                    }
+                    continue;
+                }
+                Some(b) if b.holds(cell_bit(c)) => {
+                    let wanted = visit(self.candidates(b.cell_index(cell_bit(c))));
+                    limit = limit.min(wanted);
+                }
+                _ => {}
+            }
+            let a = first_axis(&t_next);
+            if t_next[a] > limit || t_next[a] == f64::INFINITY {
+                return;
+            }
+            c[a] += step[a];
+            if c[a] < 0 || c[a] >= self.dims[a] {
+                return;
+            }
+            t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
+        }
+    }
+
+    /// Moves from an empty block to the first cell the ray enters beyond it.
+    /// False when that lies beyond `limit` or outside the level.
+    fn leave_block(
+        &self,
+        ray: &Ray64,
+        c: &mut [i64; 3],
+        t_next: &mut [f64; 3],
+        step: [i64; 3],
+        limit: f64,
+    ) -> bool {
+        let block = c.map(|v| v >> BLOCK_SHIFT << BLOCK_SHIFT);
+        // The block's last cell along each axis's direction of travel.
+        let mut exits = [0.0; 3];
+        for a in 0..3 {
+            let last = if step[a] > 0 {
+                block[a] + BLOCK_SIDE - 1
+            } else {
+                block[a]
+            };
+            exits[a] = self.next_crossing(ray, a, last, step[a]);
+        }
+        let a = first_axis(&exits);
+        let t_exit = exits[a];
+        if t_exit > limit || t_exit == f64::INFINITY {
+            return false;
+        }
+        for k in 0..3 {
+            c[k] = if k == a {
+                if step[k] > 0 {
+                    block[k] + BLOCK_SIDE
+                } else {
+                    block[k] - 1
+                }
+            } else if step[k] > 0 {
+                self.cell_at(ray, t_exit, k, c[k], block[k] + BLOCK_SIDE - 1)
+            } else if step[k] < 0 {
+                self.cell_at(ray, t_exit, k, block[k], c[k])
+            } else {
+                c[k]
+            };
+            if c[k] < 0 || c[k] >= self.dims[k] {
+                return false;
+            }
+            t_next[k] = self.next_crossing(ray, k, c[k], step[k]);
+        }
+        true
+    }
+}

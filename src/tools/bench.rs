@@ -1,0 +1,269 @@
+//! `voxtrace bench`: how fast the grid parses, builds and traces, against
+//! brute force measured in the same run.
+//!
+//! Primary rays are the scene camera's eye rays (one per pixel, nearest hit
+//! beyond the near plane); shadow rays are one per light per primary hit,
+//! from the robustly offset hit point to the light. Each pass runs on all
+//! threads of the current rayon pool and is timed alone (median of
+//! [`REPEATS`]); building the rays is not timed. Brute force traces a random
+//! sample of the pixels for [`BRUTE_SECONDS`] when a full pass would take
+//! longer.
+
+use super::gen::{generate, Distribution, GenOptions, Rng};
+use crate::geometry::{spawn_origin, Ellipsoid, Ray, Vec3Ops, V3};
+use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid};
+use crate::render::PixelSampler;
+use crate::scene::{self, Scene, SceneError};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::fmt;
+use std::time::{Duration, Instant};
+
+/// Timed passes per figure; the median is reported.
+pub const REPEATS: usize = 3;
+/// How long brute force traces its sample of pixels.
+pub const BRUTE_SECONDS: f64 = 1.5;
+/// The built-in scenes: every distribution at these sphere counts.
+pub const BUILTIN_COUNTS: [usize; 3] = [1_000, 100_000, 1_000_000];
+/// Their image size.
+pub const BUILTIN_RESOLUTION: u32 = 1024;
+/// Their seed.
+pub const BUILTIN_SEED: u64 = 1;
+
+/// One scene's figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchResult {
+    pub scene: String,
+    pub spheres: usize,
+    pub pixels: usize,
+    pub parse_s: f64,
+    pub build_s: f64,
+    pub index_bytes_per_sphere: f64,
+    pub levels: usize,
+    pub primary_mrays_s: f64,
+    pub shadow_mrays_s: f64,
+    /// Primary rays when every cell costs a probe (no empty-block skipping).
+    pub primary_mrays_s_probe_every_cell: f64,
+    pub brute_primary_mrays_s: f64,
+    /// How many pixels brute force traced to measure its speed.
+    pub brute_sample: usize,
+    pub speedup_vs_brute: f64,
+    pub primary_hit_fraction: f64,
+}
+
+#[derive(Debug)]
+pub enum BenchError {
+    Read(String, std::io::Error),
+    Scene(String, SceneError),
+}
+
+impl fmt::Display for BenchError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BenchError::Read(path, e) => write!(f, "cannot read {path}: {e}"),
+            BenchError::Scene(path, e) => write!(f, "{path}: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for BenchError {}
+
+/// The built-in scene `distribution` × `spheres`, as text.
+pub fn builtin_scene(distribution: Distribution, spheres: usize) -> Vec<u8> {
+    let options = GenOptions {
+        spheres,
+        distribution,
+        seed: BUILTIN_SEED,
+        width: BUILTIN_RESOLUTION,
+        height: BUILTIN_RESOLUTION,
+        ellipsoids: 0.0,
+        glass: 0.0,
+    };
+    let mut text = Vec::with_capacity(spheres * 110 + 1024);
+    generate(&options, &mut text).expect("writing to memory cannot fail");
+    text
+}
+
+/// The names and texts of the built-in scenes, generated one at a time.
+pub fn builtin_names() -> Vec<(String, Distribution, usize)> {
+    let mut names = Vec::new();
+    for spheres in BUILTIN_COUNTS {
+        for d in [
+            Distribution::Uniform,
+            Distribution::Mixed,
+            Distribution::Clustered,
+        ] {
+            names.push((format!("{}-{}", d.name(), spheres), d, spheres));
+        }
+    }
+    names
+}
+
+/// Reads and benchmarks a scene file.
+pub fn bench_file(path: &std::path::Path) -> Result<BenchResult, BenchError> {
+    let name = path.display().to_string();
+    let text = std::fs::read(path).map_err(|e| BenchError::Read(name.clone(), e))?;
+    bench_text(&name, &text)
+}
+
+fn median(mut samples: Vec<f64>) -> f64 {
+    samples.sort_by(f64::total_cmp);
+    samples[samples.len() / 2]
+}
+
+/// Runs `pass` [`REPEATS`] times and returns the median time in seconds.
+fn timed(mut pass: impl FnMut()) -> f64 {
+    median(
+        (0..REPEATS)
+            .map(|_| {
+                let started = Instant::now();
+                pass();
+                started.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
+}
+
+/// Benchmarks one scene given as text.
+pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
+    let started = Instant::now();
+    let scene = scene::parse(text).map_err(|e| BenchError::Scene(name.to_owned(), e))?;
+    let parse_s = started.elapsed().as_secs_f64();
+    let shapes: Vec<Ellipsoid<f32>> = scene
+        .spheres
+        .par_iter()
+        .map(Ellipsoid::from_sphere)
+        .collect();
+    let build_s = timed(|| drop(VoxelHashGrid::new(&shapes)));
+    let grid = VoxelHashGrid::new(&shapes);
+    let eye = eye_rays(&scene);
+
+    let mut hits = Vec::new();
+    let primary_s = timed(|| hits = primary_pass(&grid, &eye));
+    let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
+    let probing_s = timed(|| drop(primary_pass(&probing, &eye)));
+    let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
+    let shadow_s = timed(|| {
+        std::hint::black_box(shadow_pass(&grid, &shadow));
+    });
+    let (brute_sample, brute_s) = brute_rate(&shapes, &eye);
+
+    let mrays = |rays: usize, seconds: f64| rays as f64 / seconds.max(1e-9) / 1e6;
+    let primary = mrays(eye.len(), primary_s);
+    let brute = mrays(brute_sample, brute_s);
+    Ok(BenchResult {
+        scene: name.to_owned(),
+        spheres: shapes.len(),
+        pixels: eye.len(),
+        parse_s,
+        build_s,
+        index_bytes_per_sphere: grid.bytes() as f64 / shapes.len().max(1) as f64,
+        levels: grid.levels().len(),
+        primary_mrays_s: primary,
+        shadow_mrays_s: mrays(shadow.len(), shadow_s),
+        primary_mrays_s_probe_every_cell: mrays(eye.len(), probing_s),
+        brute_primary_mrays_s: brute,
+        brute_sample,
+        speedup_vs_brute: primary / brute,
+        primary_hit_fraction: hits.iter().flatten().count() as f64 / eye.len().max(1) as f64,
+    })
+}
+
+fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
+    let sampler = PixelSampler::new(&scene.camera, 1);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let dir = sampler.direction(f64::from(i % w), f64::from(i / w));
+            Ray::new(V3::<f32>::ZERO, V3::<f32>::from_dvec3(dir))
+        })
+        .collect()
+}
+
+fn primary_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<Hit<f32>>> {
+    rays.par_iter()
+        .with_min_len(256)
+        .map(|ray| index.closest_hit(ray, 1.0, f32::INFINITY))
+        .collect()
+}
+
+/// One ray per light per hit, from the offset hit point to the light (t = 1).
+fn shadow_rays(
+    scene: &Scene,
+    shapes: &[Ellipsoid<f32>],
+    eye: &[Ray<f32>],
+    hits: &[Option<Hit<f32>>],
+) -> Vec<Ray<f32>> {
+    let lights: Vec<V3<f32>> = scene
+        .lights
+        .iter()
+        .map(|l| V3::<f32>::from_dvec3(l.position))
+        .collect();
+    eye.par_iter()
+        .zip(hits)
+        .filter_map(|(ray, hit)| hit.map(|h| (ray, h)))
+        .flat_map_iter(|(ray, hit)| {
+            let surface = shapes[hit.sphere as usize].surface_point(ray, hit.t);
+            lights.iter().map(move |&light| {
+                let origin = spawn_origin(&surface, light - surface.point);
+                Ray::new(origin, light - origin)
+            })
+        })
+        .collect()
+}
+
+fn shadow_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> usize {
+    rays.par_iter()
+        .with_min_len(256)
+        .filter(|ray| index.any_hit(ray, 1.0))
+        .count()
+}
+
+/// Brute force's primary-ray speed: rays traced and seconds taken, over a
+/// random sample of pixels when all of them would take too long.
+fn brute_rate(shapes: &[Ellipsoid<f32>], eye: &[Ray<f32>]) -> (usize, f64) {
+    let brute = BruteForce::new(shapes);
+    let mut order: Vec<usize> = (0..eye.len()).collect();
+    let mut rng = Rng::new(BUILTIN_SEED);
+    for i in (1..order.len()).rev() {
+        order.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+    }
+    let budget = Duration::from_secs_f64(BRUTE_SECONDS);
+    let started = Instant::now();
+    let mut traced = 0;
+    let chunk = 4 * rayon::current_num_threads();
+    while traced < order.len() && started.elapsed() < budget {
+        let end = (traced + chunk).min(order.len());
+        order[traced..end].par_iter().for_each(|&i| {
+            std::hint::black_box(brute.closest_hit(&eye[i], 1.0, f32::INFINITY));
+        });
+        traced = end;
+    }
+    (traced, started.elapsed().as_secs_f64())
+}
+
+/// The figures as a Markdown table.
+pub fn markdown_table(results: &[BenchResult]) -> String {
+    let mut out = String::from(
+        "| scene | spheres | parse s | build s | index B/sphere | levels | primary Mrays/s | shadow Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in results {
+        out += &format!(
+            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.4} | {:.0}× |\n",
+            r.scene,
+            r.spheres,
+            r.parse_s,
+            r.build_s,
+            r.index_bytes_per_sphere,
+            r.levels,
+            r.primary_mrays_s,
+            r.shadow_mrays_s,
+            r.primary_mrays_s_probe_every_cell,
+            r.brute_primary_mrays_s,
+            r.speedup_vs_brute
+        );
+    }
+    out
+}

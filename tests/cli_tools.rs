@@ -1,0 +1,100 @@
+//! `voxtrace gen`, `render --index` and `bench` end to end.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn voxtrace(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_voxtrace"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("voxtrace-cli-tools-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn generated_scene_renders_the_same_with_either_index() {
+    let scene = scratch("mixed.txt");
+    let s = scene.to_str().unwrap();
+    let out = voxtrace(&[
+        "gen",
+        "--spheres",
+        "3000",
+        "--dist",
+        "mixed",
+        "--seed",
+        "5",
+        "--res",
+        "80",
+        "60",
+        "--ellipsoids",
+        "0.3",
+        "--glass",
+        "0.2",
+        "-o",
+        s,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (grid, brute) = (scratch("grid.ppm"), scratch("brute.ppm"));
+    for (index, image) in [("grid", &grid), ("brute", &brute)] {
+        let out = voxtrace(&["render", s, "--index", index, "-o", image.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let (a, b) = (
+        std::fs::read(&grid).unwrap(),
+        std::fs::read(&brute).unwrap(),
+    );
+    assert!(a.starts_with(b"P6\n80 60\n255\n"));
+    assert!(a == b, "grid and brute force images differ");
+
+    let out = voxtrace(&["bench", "--scene", s, "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let results: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let first = &results[0];
+    assert_eq!(first["spheres"], 3000);
+    for field in [
+        "parse_s",
+        "build_s",
+        "index_bytes_per_sphere",
+        "primary_mrays_s",
+        "shadow_mrays_s",
+        "speedup_vs_brute",
+    ] {
+        assert!(first[field].as_f64().is_some_and(|v| v > 0.0), "{field}");
+    }
+}
+
+#[test]
+fn bad_arguments_exit_with_code_2() {
+    let out = scratch("never.txt");
+    let o = out.to_str().unwrap();
+    for args in [
+        vec!["gen", "--spheres", "10", "--glass", "1.5", "-o", o],
+        vec!["gen", "--spheres", "10", "--dist", "spiral", "-o", o],
+        vec!["gen", "--spheres", "10", "--res", "0", "10", "-o", o],
+        vec!["render", o, "--index", "octree"],
+    ] {
+        assert_eq!(voxtrace(&args).status.code(), Some(2), "{args:?}");
+    }
+    let bad_scene = scratch("bad.txt");
+    std::fs::write(&bad_scene, "NEAR one\n").unwrap();
+    let out = voxtrace(&["bench", "--scene", bad_scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("line 1, column 6"));
+}

@@ -1,0 +1,240 @@
+//! The grid returns exactly what brute force returns: the same sphere and the
+//! same t for `closest_hit`, the same answer for `any_hit`, over random scenes
+//! built to stress the traversal and random rays built to stress the walk.
+
+use glam::{Vec3, Vec3Swizzles};
+use proptest::prelude::*;
+use voxtrace::geometry::{Ellipsoid, Ray};
+use voxtrace::index::{BruteForce, EmptySpace, SphereIndex, VoxelHashGrid};
+
+/// SplitMix64: scenes come from a seed proptest shrinks over.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.unit()
+    }
+    fn log_range(&mut self, lo: f32, hi: f32) -> f32 {
+        (lo.ln() + (hi.ln() - lo.ln()) * self.unit()).exp()
+    }
+    fn point(&mut self, half: f32) -> Vec3 {
+        Vec3::new(
+            self.range(-half, half),
+            self.range(-half, half),
+            self.range(-half, half),
+        )
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Kind {
+    /// Radii log-uniform over four decades, heavily overlapping.
+    Mixed,
+    /// Dense clumps far apart.
+    Clustered,
+    /// A few huge spheres among many tiny ones.
+    HugeAndTiny,
+    /// Centres exactly on lattice points (integers), radii under half a cell.
+    OnCorners,
+    /// Ellipsoids, some very flat.
+    Ellipsoids,
+}
+
+fn scene(kind: Kind, seed: u64) -> Vec<Ellipsoid<f32>> {
+    let mut rng = Rng(seed);
+    let n = 150 + rng.below(150);
+    let mut shapes = Vec::with_capacity(n);
+    let sphere = |c: Vec3, r: f32| Ellipsoid::new(c, Vec3::splat(r));
+    match kind {
+        Kind::Mixed => {
+            for _ in 0..n {
+                shapes.push(sphere(rng.point(20.0), rng.log_range(1e-3, 10.0)));
+            }
+        }
+        Kind::Clustered => {
+            let centres: Vec<Vec3> = (0..4).map(|_| rng.point(200.0)).collect();
+            for _ in 0..n {
+                let c = centres[rng.below(centres.len())] + rng.point(1.0);
+                shapes.push(sphere(c, rng.log_range(0.01, 0.3)));
+            }
+        }
+        Kind::HugeAndTiny => {
+            for _ in 0..3 {
+                shapes.push(sphere(rng.point(50.0), rng.range(20.0, 60.0)));
+            }
+            for _ in 0..n {
+                shapes.push(sphere(rng.point(50.0), rng.log_range(1e-3, 1e-2)));
+            }
+        }
+        Kind::OnCorners => {
+            for _ in 0..n {
+                let c = rng.point(6.0).round();
+                let r = [0.45, 0.25, 0.125, 1.9, 0.9][rng.below(5)];
+                shapes.push(sphere(c, r));
+            }
+        }
+        Kind::Ellipsoids => {
+            for _ in 0..n {
+                let scale = Vec3::new(
+                    rng.log_range(0.01, 2.0),
+                    rng.log_range(0.01, 2.0),
+                    rng.log_range(0.01, 2.0),
+                );
+                let flip = Vec3::new(if rng.below(2) == 0 { 1.0 } else { -1.0 }, 1.0, 1.0);
+                shapes.push(Ellipsoid::new(rng.point(10.0), scale * flip));
+            }
+        }
+    }
+    shapes
+}
+
+/// The half-size of a box that holds every sphere.
+fn extent(shapes: &[Ellipsoid<f32>]) -> f32 {
+    shapes
+        .iter()
+        .map(|s| (s.center.abs() + s.scale.abs()).max_element())
+        .fold(1.0, f32::max)
+}
+
+/// A random ray of one of the awkward kinds.
+fn ray(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> Ray<f32> {
+    let half = extent(shapes);
+    let origin = rng.point(half);
+    let pick = &shapes[rng.below(shapes.len())];
+    let sign = |rng: &mut Rng, v: f32| if rng.below(2) == 0 { v } else { -v };
+    match rng.below(6) {
+        // From a random point (often inside a sphere) towards a sphere.
+        0 => Ray::new(origin, pick.center - origin + rng.point(0.01)),
+        // Axis-parallel, with signed zeros in the other components.
+        1 => {
+            let mut d = [sign(rng, 0.0), sign(rng, 0.0), sign(rng, 0.0)];
+            d[rng.below(3)] = sign(rng, 1.0);
+            let o = if rng.below(2) == 0 {
+                origin
+            } else {
+                pick.center.round()
+            };
+            Ray::new(o, Vec3::from_array(d))
+        }
+        // Through a lattice point (integers are lattice points of every level
+        // with cells of at most one; multiples of 4 of most others).
+        2 => {
+            let lattice = rng.point(half).round() * if rng.below(2) == 0 { 1.0 } else { 4.0 };
+            let o = if rng.below(2) == 0 {
+                origin.round()
+            } else {
+                origin
+            };
+            Ray::new(o, lattice - o)
+        }
+        // Grazing: passes a sphere's rim at 1e-7 to 1e-2 radii, from near or far.
+        3 => {
+            let d = rng.point(1.0).normalize_or(Vec3::X);
+            let side = d.any_orthonormal_vector();
+            let r = pick.scale.abs().max_element();
+            let miss = 1.0 + sign(rng, 1.0) * 10f32.powf(-rng.range(2.0, 7.0));
+            let back = rng.log_range(r * 1.5, 2.0 * half);
+            let o = pick.center + side * (r * miss) - d * back;
+            Ray::new(o, d)
+        }
+        // Along a diagonal through a sphere's centre, from far outside.
+        4 => {
+            let d = Vec3::new(sign(rng, 1.0), sign(rng, 1.0), sign(rng, 1.0));
+            Ray::new(pick.center - d * half, d)
+        }
+        // Anything.
+        _ => Ray::new(origin, rng.point(1.0)),
+    }
+}
+
+fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
+    let brute = BruteForce::new(shapes);
+    let grid = VoxelHashGrid::new(shapes);
+    let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
+    let mut rng = Rng(seed ^ 0x5eed);
+    for _ in 0..rays {
+        let ray = ray(&mut rng, shapes);
+        for (t_min, t_max) in [(0.0, f32::INFINITY), (1.0, f32::INFINITY), (0.0, 1.0)] {
+            let want = brute.closest_hit(&ray, t_min, t_max);
+            assert_eq!(
+                grid.closest_hit(&ray, t_min, t_max),
+                want,
+                "closest_hit {ray:?} in ({t_min}, {t_max})"
+            );
+            assert_eq!(probing.closest_hit(&ray, t_min, t_max), want);
+        }
+        for t_max in [1.0, 0.5, f32::INFINITY] {
+            let want = brute.any_hit(&ray, t_max);
+            assert_eq!(
+                grid.any_hit(&ray, t_max),
+                want,
+                "any_hit {ray:?} to {t_max}"
+            );
+            assert_eq!(probing.any_hit(&ray, t_max), want);
+        }
+    }
+}
+
+fn kinds() -> impl Strategy<Value = Kind> {
+    prop_oneof![
+        Just(Kind::Mixed),
+        Just(Kind::Clustered),
+        Just(Kind::HugeAndTiny),
+        Just(Kind::OnCorners),
+        Just(Kind::Ellipsoids),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(160))]
+
+    #[test]
+    fn grid_agrees_with_brute_force(kind in kinds(), seed in any::<u64>()) {
+        check(&scene(kind, seed), seed, 300);
+    }
+}
+
+/// Rays from the eye through a pixel grid, as the renderer shoots them.
+#[test]
+fn eye_rays_agree_on_every_kind_of_scene() {
+    for (i, kind) in [
+        Kind::Mixed,
+        Kind::Clustered,
+        Kind::HugeAndTiny,
+        Kind::OnCorners,
+        Kind::Ellipsoids,
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let shapes = scene(kind, 7 + i as u64);
+        let brute = BruteForce::new(&shapes);
+        let grid = VoxelHashGrid::new(&shapes);
+        for y in 0..64 {
+            for x in 0..64 {
+                let dir = Vec3::new(x as f32 / 32.0 - 1.0, 1.0 - y as f32 / 32.0, -1.0);
+                for dir in [dir, -dir, dir.zxy()] {
+                    let ray = Ray::new(Vec3::ZERO, dir);
+                    assert_eq!(
+                        grid.closest_hit(&ray, 1.0, f32::INFINITY),
+                        brute.closest_hit(&ray, 1.0, f32::INFINITY),
+                        "{kind:?} {dir}"
+                    );
+                }
+            }
+        }
+    }
+}
