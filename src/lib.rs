@@ -11,3 +11,4 @@ pub mod limits;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod tools;

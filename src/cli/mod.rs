@@ -22,6 +22,8 @@ struct Cli {
 enum Command {
     /// Render a scene file to PPM or PNG.
     Render(render::RenderArgs),
+    /// Render a fixed suite under variants and report speed against error.
+    Report(crate::tools::report::ReportArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -68,6 +70,9 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => render::run(args),
+        Command::Report(args) => {
+            crate::tools::report::run(args).map_err(|e| CliError::Failed(e.to_string()))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -82,7 +82,7 @@ impl<R: Real> Ellipsoid<R> {
     pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
         let LocalRay { f, a, b, l, .. } = self.local(ray);
         let disc = a * (R::one() - l.dot(l));
-        if !(disc >= R::zero()) {
+        if disc.is_nan() || disc < R::zero() {
             return None;
         }
         let c = f.dot(f) - R::one();

@@ -274,9 +274,10 @@ pub fn render_with<R: Real, I: SphereIndex<R>>(
     })
 }
 
-/// Clamps to [0, 1] (NaN to 0) and quantises as the course did: `floor(255·c)`.
+/// Clamps to [0, 1] and quantises as the course did: `floor(255·c)`. A NaN
+/// stays NaN through the clamp and the float-to-int cast turns it into 0.
 fn to_bytes(color: glam::DVec3) -> [u8; 3] {
     color
         .to_array()
-        .map(|c| (255.0 * c.max(0.0).min(1.0)).floor() as u8)
+        .map(|c| (255.0 * c.clamp(0.0, 1.0)).floor() as u8)
 }

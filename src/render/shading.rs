@@ -182,7 +182,7 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
         for &(position, intensity) in &self.lights {
             let to_light = (position - surface.point).normalize();
             let n_dot_l = n.dot(to_light);
-            if !(n_dot_l > R::zero()) {
+            if n_dot_l.is_nan() || n_dot_l <= R::zero() {
                 continue;
             }
             if self.trace_shadow_ray(surface, position, counts) {
@@ -300,7 +300,7 @@ mod tests {
     ) {
         let n = V::Z;
         let d = V::new(1.0, 0.0, -1.0).normalize();
-        let t = refract(d, n, 1.0 / 1.5).unwrap();
+        let t = refract::<f64>(d, n, 1.0 / 1.5).unwrap();
         let sin_t = t.x / t.length();
         assert!(
             (sin_t - d.x / 1.5).abs() < 1e-12,

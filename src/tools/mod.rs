@@ -1,0 +1,3 @@
+//! Tools around the renderer: measurements and reports.
+
+pub mod report;
