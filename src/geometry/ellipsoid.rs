@@ -76,11 +76,12 @@ impl<R: Real> Ellipsoid<R> {
         LocalRay { f, e, a, b, l }
     }
 
-    /// The nearest t in the open interval (t_min, t_max) where the ray meets
-    /// the surface, if any.
-    #[inline]
-    pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
-        let LocalRay { f, a, b, l, .. } = self.local(ray);
+    /// Both roots, nearer first, and `c` (positive when the ray starts
+    /// outside); `None` when the line misses. [`Self::surface_point`] calls it
+    /// too, so both see bit-identical roots.
+    #[inline(always)]
+    fn roots(local: &LocalRay<R>) -> Option<(R, R, R)> {
+        let LocalRay { f, a, b, l, .. } = *local;
         let disc = a * (R::one() - l.dot(l));
         if disc.is_nan() || disc < R::zero() {
             return None;
@@ -89,6 +90,14 @@ impl<R: Real> Ellipsoid<R> {
         let q = -(b + disc.sqrt().copysign(b));
         let (t0, t1) = (c / q, q / a);
         let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+        Some((near, far, c))
+    }
+
+    /// The nearest t in the open interval (t_min, t_max) where the ray meets
+    /// the surface, if any.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
+        let (near, far, _) = Self::roots(&self.local(ray))?;
         if near > t_min && near < t_max {
             Some(near)
         } else if far > t_min && far < t_max {
@@ -104,9 +113,20 @@ impl<R: Real> Ellipsoid<R> {
     /// offset `±√(1 − |l|²)` along the ray, which stays accurate when `t`
     /// is large compared with the ellipsoid, then projected onto the surface.
     pub fn surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
-        let LocalRay { e, a, b, l, .. } = self.local(ray);
+        let local = self.local(ray);
+        let LocalRay { e, a, b, l, .. } = local;
         let half_chord = (R::one() - l.dot(l)).max(R::zero()).sqrt() / a.sqrt();
-        let entering = t < -b / a;
+        // Which root `t` is. Comparing it with the midpoint −b/a fails when
+        // the half chord is below t's ulp (radius 1e-3 at distance 1e4 in
+        // f32: ulp(1e4) ≈ 1e-3): the far half was drawn with its normal
+        // mirrored. `t` is bit-identical to the root `intersect` returned, so
+        // compare it with both; when the roots themselves round to the same
+        // float, the ray enters if and only if it starts outside.
+        let entering = match Self::roots(&local) {
+            Some((near, far, c)) if near == far => c > R::zero(),
+            Some((near, far, _)) => (t - near).abs() <= (t - far).abs(),
+            None => t < -b / a,
+        };
         let local = if entering {
             l - e * half_chord
         } else {
@@ -226,6 +246,24 @@ mod tests {
             }
         }
         assert_eq!((misses_inside, hits_outside), (0, 0));
+    }
+
+    /// Radius 1e-3 at 1e4: both roots lie within an ulp of t, so only which
+    /// root was returned, not its value, tells the near half from the far one.
+    #[test]
+    fn near_half_of_a_sphere_below_an_ulp_of_t_faces_the_ray() {
+        let s = Ellipsoid::<f32>::new(Vec3::new(0.0, 0.0, -1e4), Vec3::splat(1e-3));
+        for u in [-0.95f32, -0.5, 0.5, 0.95] {
+            let ray = Ray::new(Vec3::ZERO, Vec3::new(u * 1e-7, 0.0, -1.0));
+            let t = s.intersect(&ray, 1.0, f32::INFINITY).unwrap();
+            let p = s.surface_point(&ray, t);
+            assert!(!p.inside, "{u}");
+            assert!(
+                p.normal.x * u > 0.0 && p.normal.z > 0.0,
+                "{u}: {:?}",
+                p.normal
+            );
+        }
     }
 
     /// A planet of radius 1e6 seen from 1 unit above: the ground below is hit

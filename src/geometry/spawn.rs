@@ -62,8 +62,9 @@ mod tests {
                     continue;
                 };
                 let hit = s.surface_point(&ray, t);
-                // Leaving outwards (reflection): no hit at all.
-                let out = Vec3::new(rand(), rand(), rand()) + hit.normal * 1.01;
+                // Leaving outwards (reflection): no hit at all. The random
+                // part is shorter than the normal part, so out·N > 0.
+                let out = Vec3::new(rand(), rand(), rand()) * 0.5 + hit.normal * 1.01;
                 let origin = spawn_origin(&hit, out);
                 assert_eq!(
                     s.intersect(&Ray::new(origin, out), 0.0, f32::INFINITY),
