@@ -1,6 +1,6 @@
 //! `report.md`: the tables.
 
-use super::{plot, Against, Family, Measurement, Report, Section, REFERENCE_DEPTH, REFERENCE_SPP};
+use super::{plot, Against, Measurement, Report, Section, REFERENCE_DEPTH, REFERENCE_SPP};
 use std::fmt::Write;
 
 /// The share of pixels the f32 fast path must keep within one level of f64.
@@ -50,7 +50,7 @@ pub fn write(report: &Report) -> String {
 
     let _ = writeln!(md, "## Summary by scene family\n");
     let _ = writeln!(md, "Times are summed over the family's scenes, errors averaged (the worst for the largest difference). Pareto: no variant compared with the same reference is both faster and more accurate.\n");
-    for family in Family::ALL {
+    for family in report.families() {
         let n = report
             .measurements
             .iter()

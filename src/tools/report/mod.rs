@@ -46,6 +46,9 @@ pub struct ReportArgs {
     /// Render threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Which scene families to render (default: all).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = Family::ALL)]
+    families: Vec<Family>,
 }
 
 #[derive(Debug)]
@@ -475,7 +478,8 @@ pub fn run(args: ReportArgs) -> Result<(), ReportError> {
         .num_threads(args.threads.unwrap_or(0))
         .build()
         .map_err(|e| ReportError::Threads(e.to_string()))?;
-    let suite = suite::load(&args.reference, &args.hard).map_err(ReportError::Suite)?;
+    let suite =
+        suite::load(&args.reference, &args.hard, &args.families).map_err(ReportError::Suite)?;
     let variants = variants();
     let mut measurements = vec![];
     for (i, entry) in suite.iter().enumerate() {
@@ -543,6 +547,14 @@ pub struct Summary {
 }
 
 impl Report {
+    /// The families that were rendered, in their fixed order.
+    pub fn families(&self) -> Vec<Family> {
+        Family::ALL
+            .into_iter()
+            .filter(|f| self.measurements.iter().any(|m| m.family == *f))
+            .collect()
+    }
+
     /// Every variant over `family`, with the Pareto front marked among the
     /// variants compared with the same reference.
     pub fn summarize(&self, family: Family) -> Vec<Summary> {

@@ -1,7 +1,7 @@
 //! Time against error, one panel per scene family and reference, with the
 //! Pareto front (no variant both faster and more accurate) drawn as a line.
 
-use super::{Against, Family, Report, ReportError};
+use super::{Against, Report, ReportError};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -16,9 +16,10 @@ fn err(e: impl std::fmt::Display) -> ReportError {
 pub fn draw(report: &Report, path: &Path) -> Result<(), ReportError> {
     let root = SVGBackend::new(path, (1200, 1350)).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;
-    let panels = root.split_evenly((Family::ALL.len(), 2));
+    let families = report.families();
+    let panels = root.split_evenly((families.len().max(1), 2));
     let mut panels = panels.iter();
-    for family in Family::ALL {
+    for family in families {
         let summaries = report.summarize(family);
         for (against, what) in [
             (Against::Reference, "vs f64 depth 16, full resolution"),

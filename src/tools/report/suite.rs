@@ -7,7 +7,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// Scenes are grouped by where they come from; each family gets its own plot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, clap::ValueEnum)]
 pub enum Family {
     /// The course's scenes, both dialects (`../shared/reference`).
     Reference,
@@ -101,9 +101,26 @@ pub fn is_moved_eye_case(name: &str) -> bool {
     name.starts_with("translated_")
 }
 
-/// Every scene the report renders, in a fixed order.
-pub fn load(reference: &Path, hard: &Path) -> Result<Vec<SuiteScene>, SuiteError> {
+/// Every scene of the chosen families, in a fixed order.
+pub fn load(
+    reference: &Path,
+    hard: &Path,
+    families: &[Family],
+) -> Result<Vec<SuiteScene>, SuiteError> {
     let mut suite = vec![];
+    if families.contains(&Family::Reference) {
+        load_reference(reference, &mut suite)?;
+    }
+    if families.contains(&Family::Hard) {
+        load_hard(hard, &mut suite)?;
+    }
+    if families.contains(&Family::Generated) {
+        suite.extend(generated());
+    }
+    Ok(suite)
+}
+
+fn load_reference(reference: &Path, suite: &mut Vec<SuiteScene>) -> Result<(), SuiteError> {
     for dialect in ["classic", "tinygraphics"] {
         for path in scene_files(&reference.join(dialect).join("scenes"))? {
             suite.push(SuiteScene {
@@ -113,6 +130,10 @@ pub fn load(reference: &Path, hard: &Path) -> Result<Vec<SuiteScene>, SuiteError
             });
         }
     }
+    Ok(())
+}
+
+fn load_hard(hard: &Path, suite: &mut Vec<SuiteScene>) -> Result<(), SuiteError> {
     for path in scene_files(hard)? {
         let name = stem(&path);
         if !is_moved_eye_case(&name) {
@@ -123,8 +144,7 @@ pub fn load(reference: &Path, hard: &Path) -> Result<Vec<SuiteScene>, SuiteError
             });
         }
     }
-    suite.extend(generated());
-    Ok(suite)
+    Ok(())
 }
 
 fn material(color: DVec3, reflect: f64, refract: f64, ior: f64) -> Material {
