@@ -34,6 +34,8 @@ enum Command {
     Gen(gen::GenArgs),
     /// Measure parse, index build and ray speed against brute force.
     Bench(bench::BenchArgs),
+    /// Render a fixed suite under variants and report speed against error.
+    Report(crate::tools::report::ReportArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -84,6 +86,9 @@ pub fn main() -> ExitCode {
         Command::Load(args) => load::run(args),
         Command::Gen(args) => gen::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Report(args) => {
+            crate::tools::report::run(args).map_err(|e| CliError::Failed(e.to_string()))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

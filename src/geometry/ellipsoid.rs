@@ -76,11 +76,12 @@ impl<R: Real> Ellipsoid<R> {
         LocalRay { f, e, a, b, l }
     }
 
-    /// Both roots of the quadratic, nearer first, if the line meets the surface.
+    /// Both roots, nearer first, and `c` (positive when the ray starts
+    /// outside); `None` when the line misses. [`Self::surface_point`] calls it
+    /// too, so both see bit-identical roots.
     #[inline(always)]
-    fn roots(&self, ray: &Ray<R>) -> Option<(LocalRay<R>, R, R)> {
-        let local = self.local(ray);
-        let LocalRay { f, a, b, l, .. } = local;
+    fn roots(local: &LocalRay<R>) -> Option<(R, R, R)> {
+        let LocalRay { f, a, b, l, .. } = *local;
         let disc = a * (R::one() - l.dot(l));
         if disc.is_nan() || disc < R::zero() {
             return None;
@@ -88,18 +89,15 @@ impl<R: Real> Ellipsoid<R> {
         let c = f.dot(f) - R::one();
         let q = -(b + disc.sqrt().copysign(b));
         let (t0, t1) = (c / q, q / a);
-        Some(if t0 <= t1 {
-            (local, t0, t1)
-        } else {
-            (local, t1, t0)
-        })
+        let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+        Some((near, far, c))
     }
 
     /// The nearest t in the open interval (t_min, t_max) where the ray meets
     /// the surface, if any.
     #[inline]
     pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
-        let (_, near, far) = self.roots(ray)?;
+        let (near, far, _) = Self::roots(&self.local(ray))?;
         if near > t_min && near < t_max {
             Some(near)
         } else if far > t_min && far < t_max {
@@ -114,27 +112,26 @@ impl<R: Real> Ellipsoid<R> {
     /// The point is rebuilt from the closest approach `l` plus the chord
     /// offset `±√(1 − |l|²)` along the ray, which stays accurate when `t`
     /// is large compared with the ellipsoid, then projected onto the surface.
-    /// Which wall was hit is read from which root `t` is (recomputed bit for
-    /// bit), because comparing `t` with the midpoint fails once the chord is
-    /// below one ulp of `t`.
     pub fn surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
-        let Some((LocalRay { e, a, l, .. }, near, _)) = self.roots(ray) else {
-            // Only reachable when `t` did not come from `intersect`: take the
-            // point on the ray as it is.
-            let local = (ray.at(t) - self.center) * self.inv_scale;
-            return self.surface_at(ray, local);
-        };
+        let local = self.local(ray);
+        let LocalRay { e, a, b, l, .. } = local;
         let half_chord = (R::one() - l.dot(l)).max(R::zero()).sqrt() / a.sqrt();
-        let local = if t == near {
+        // Which root `t` is. Comparing it with the midpoint −b/a fails when
+        // the half chord is below t's ulp (radius 1e-3 at distance 1e4 in
+        // f32: ulp(1e4) ≈ 1e-3): the far half was drawn with its normal
+        // mirrored. `t` is bit-identical to the root `intersect` returned, so
+        // compare it with both; when the roots themselves round to the same
+        // float, the ray enters if and only if it starts outside.
+        let entering = match Self::roots(&local) {
+            Some((near, far, c)) if near == far => c > R::zero(),
+            Some((near, far, _)) => (t - near).abs() <= (t - far).abs(),
+            None => t < -b / a,
+        };
+        let local = if entering {
             l - e * half_chord
         } else {
             l + e * half_chord
         };
-        self.surface_at(ray, local)
-    }
-
-    /// The surface point at `local` (in unit-sphere space), projected onto the surface.
-    fn surface_at(&self, ray: &Ray<R>, local: V3<R>) -> SurfacePoint<R> {
         let local = local / local.length();
         let offset = local * self.scale;
         let outward = (local * self.inv_scale).normalize();
@@ -249,6 +246,24 @@ mod tests {
             }
         }
         assert_eq!((misses_inside, hits_outside), (0, 0));
+    }
+
+    /// Radius 1e-3 at 1e4: both roots lie within an ulp of t, so only which
+    /// root was returned, not its value, tells the near half from the far one.
+    #[test]
+    fn near_half_of_a_sphere_below_an_ulp_of_t_faces_the_ray() {
+        let s = Ellipsoid::<f32>::new(Vec3::new(0.0, 0.0, -1e4), Vec3::splat(1e-3));
+        for u in [-0.95f32, -0.5, 0.5, 0.95] {
+            let ray = Ray::new(Vec3::ZERO, Vec3::new(u * 1e-7, 0.0, -1.0));
+            let t = s.intersect(&ray, 1.0, f32::INFINITY).unwrap();
+            let p = s.surface_point(&ray, t);
+            assert!(!p.inside, "{u}");
+            assert!(
+                p.normal.x * u > 0.0 && p.normal.z > 0.0,
+                "{u}: {:?}",
+                p.normal
+            );
+        }
     }
 
     /// A planet of radius 1e6 seen from 1 unit above: the ground below is hit

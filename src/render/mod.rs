@@ -6,11 +6,12 @@ mod shading;
 
 pub use camera::PixelSampler;
 
-use crate::geometry::{Ellipsoid, Real};
+use crate::geometry::{Ellipsoid, Ray, Real, Vec3Ops, V3};
 use crate::index::{BruteForce, SphereIndex, VoxelHashGrid};
 use crate::limits;
 use crate::output::Image;
 use crate::scene::{Dialect, Scene};
+use glam::DVec3;
 use rayon::prelude::*;
 use shading::Tracer;
 use std::fmt;
@@ -160,6 +161,45 @@ pub fn render_in<R: Real>(
             render_with(scene, &shapes, &index, options, started.elapsed(), progress)
         }
     }
+}
+
+/// The nearest sphere along each pixel's corner eye ray (the spp-1 ray), row
+/// by row from the top, searched with the index `kind` in the precision `R`.
+/// It is what the renderer's first hit sees, without shading: the report's
+/// hit-mismatch rate and the hard-case tests compare these maps.
+pub fn eye_hit_map<R: Real>(scene: &Scene, kind: IndexKind) -> Vec<Option<u32>> {
+    eye_hit_map_from::<R>(scene, kind, DVec3::ZERO)
+}
+
+/// [`eye_hit_map`] with the eye moved to `eye` (the image plane moves with
+/// it), for checking that translating a whole scene leaves the map alone.
+pub fn eye_hit_map_from<R: Real>(scene: &Scene, kind: IndexKind, eye: DVec3) -> Vec<Option<u32>> {
+    let shapes: Vec<Ellipsoid<R>> = scene.spheres.iter().map(Ellipsoid::from_sphere).collect();
+    match kind {
+        IndexKind::Grid => hit_map_with(scene, &VoxelHashGrid::new(&shapes), eye),
+        IndexKind::Brute => hit_map_with(scene, &BruteForce::new(&shapes), eye),
+    }
+}
+
+fn hit_map_with<R: Real, I: SphereIndex<R>>(
+    scene: &Scene,
+    index: &I,
+    eye: DVec3,
+) -> Vec<Option<u32>> {
+    let sampler = PixelSampler::new(&scene.camera, 1);
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let origin = V3::<R>::from_dvec3(eye);
+    (0..width * height)
+        .into_par_iter()
+        .map(|i| {
+            let dir = sampler.direction(f64::from(i % width), f64::from(i / width));
+            let ray = Ray::new(origin, V3::<R>::from_dvec3(dir));
+            // As in the renderer: the nearest hit beyond the near plane.
+            index
+                .closest_hit(&ray, R::one(), R::infinity())
+                .map(|hit| hit.sphere)
+        })
+        .collect()
 }
 
 fn check_options(options: &RenderOptions) -> Result<(), RenderError> {
