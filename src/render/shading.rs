@@ -97,6 +97,12 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
         }
     }
 
+    /// The two models share the direct light and differ in how they add
+    /// ambient light and blend in the bounces:
+    ///
+    /// - classic: `Ka·A·O + direct + Kr·reflected + Krefract·refracted`;
+    /// - browser: `surface = min(k_a·O + direct, 1)`, then
+    ///   `surface + (1 − surface)⊙(k_r·reflected + k_refract·refracted)`.
     fn shade(
         &self,
         ray: &Ray<R>,
@@ -107,62 +113,22 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
     ) -> DVec3 {
         let id = hit.sphere as usize;
         let surface = self.shapes[id].surface_point(ray, hit.t);
-        let material = &self.scene.spheres[id].material;
-        let view = -ray.dir.normalize();
+        let m = &self.scene.spheres[id].material;
+        let direct = self.direct_light(&surface, m, -ray.dir.normalize(), counts);
         match self.scene.dialect {
             Dialect::Classic => {
-                self.shade_classic(ray, &surface, material, view, depth, weight, counts)
+                let local = m.ambient * self.scene.ambient * m.color + direct;
+                local + self.bounces(ray, &surface, m, depth, weight, DVec3::splat, counts)
             }
             Dialect::Browser => {
-                self.shade_browser(ray, &surface, material, view, depth, weight, counts)
+                let local = (m.ambient * m.color + direct).min(DVec3::ONE);
+                let open = DVec3::ONE - local;
+                local + open * self.bounces(ray, &surface, m, depth, weight, |k| k * open, counts)
             }
         }
     }
 
-    /// `Ka·A·O + Σ (Kd·I·(N·L)·O + Ks·I·spec^n) + Kr·reflected + Krefract·refracted`.
-    #[allow(clippy::too_many_arguments)]
-    fn shade_classic(
-        &self,
-        ray: &Ray<R>,
-        surface: &SurfacePoint<R>,
-        m: &Material,
-        view: V3<R>,
-        depth: u32,
-        weight: DVec3,
-        counts: &mut RayCounts,
-    ) -> DVec3 {
-        let mut color = m.ambient * self.scene.ambient * m.color;
-        color += self.direct_light(surface, m, view, counts, |intensity, n_dot_l, spec| {
-            intensity * (m.diffuse * n_dot_l * m.color + DVec3::splat(m.specular * spec))
-        });
-        let scalar = |k: f64| DVec3::splat(k);
-        color += self.bounces(ray, surface, m, depth, weight, scalar, counts);
-        color
-    }
-
-    /// `surface = min(k_a·O + Σ I⊙(k_d·(N·L)·O + k_s·spec^n), 1)`, then
-    /// `surface + (1 − surface)⊙(k_r·reflected + k_refract·refracted)`.
-    #[allow(clippy::too_many_arguments)]
-    fn shade_browser(
-        &self,
-        ray: &Ray<R>,
-        surface: &SurfacePoint<R>,
-        m: &Material,
-        view: V3<R>,
-        depth: u32,
-        weight: DVec3,
-        counts: &mut RayCounts,
-    ) -> DVec3 {
-        let mut local = m.ambient * m.color;
-        local += self.direct_light(surface, m, view, counts, |intensity, n_dot_l, spec| {
-            intensity * (m.diffuse * n_dot_l * m.color + DVec3::splat(m.specular * spec))
-        });
-        let local = local.min(DVec3::ONE);
-        let open = DVec3::ONE - local;
-        local + open * self.bounces(ray, surface, m, depth, weight, |k| k * open, counts)
-    }
-
-    /// Σ over unshadowed lights of `term(I, N·L, specular^n)`.
+    /// `Σ I⊙(Kd·(N·L)·O + Ks·spec^n)` over the lights not in shadow.
     ///
     /// A light with N·L ≤ 0 is behind the surface, so the closed surface
     /// itself shadows it: no shadow ray is needed, nor any term.
@@ -172,7 +138,6 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
         m: &Material,
         view: V3<R>,
         counts: &mut RayCounts,
-        term: impl Fn(DVec3, f64, f64) -> DVec3,
     ) -> DVec3 {
         let mut sum = DVec3::ZERO;
         if m.diffuse == 0.0 && m.specular == 0.0 {
@@ -195,7 +160,8 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
             } else {
                 0.0
             };
-            sum += term(intensity, n_dot_l.to_f64(), spec);
+            sum += intensity
+                * (m.diffuse * n_dot_l.to_f64() * m.color + DVec3::splat(m.specular * spec));
         }
         sum
     }
