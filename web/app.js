@@ -97,9 +97,9 @@ async function readError(res) {
   let body = null;
   try { body = JSON.parse(text); } catch { /* not JSON */ }
   let message = (body && body.message) || text.trim() || `${res.status} ${res.statusText}`;
-  if (!/[.!?]$/.test(message)) message += '.';
   if (res.status === 503) {
     const wait = res.headers.get('Retry-After');
+    if (!/[.!?]$/.test(message)) message += '.';
     message += wait ? ` The server is busy; try again in ${wait} s.` : ' The server is busy; try again shortly.';
   } else if (res.status === 413) {
     message = `The scene is too large. ${message}`;
