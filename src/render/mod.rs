@@ -150,16 +150,32 @@ pub fn render_in<R: Real>(
 ) -> Result<Rendered, RenderError> {
     check_options(options)?;
     let started = Instant::now();
-    let shapes: Vec<Ellipsoid<R>> = scene.spheres.iter().map(Ellipsoid::from_sphere).collect();
-    match options.index {
-        IndexKind::Grid => {
-            let index = VoxelHashGrid::new(&shapes);
-            render_with(scene, &shapes, &index, options, started.elapsed(), progress)
-        }
-        IndexKind::Brute => {
-            let index = BruteForce::new(&shapes);
-            render_with(scene, &shapes, &index, options, started.elapsed(), progress)
-        }
+    let shapes = shapes_of::<R>(scene);
+    let index = build_index(&shapes, options.index);
+    render_with(
+        scene,
+        &shapes,
+        &*index,
+        options,
+        started.elapsed(),
+        progress,
+    )
+}
+
+/// The scene's spheres in the precision `R`, in id order.
+fn shapes_of<R: Real>(scene: &Scene) -> Vec<Ellipsoid<R>> {
+    scene.spheres.iter().map(Ellipsoid::from_sphere).collect()
+}
+
+/// The index `kind` names, built over `shapes`. One dynamic call per ray
+/// is noise next to the walk and the sphere tests behind it.
+pub fn build_index<R: Real>(
+    shapes: &[Ellipsoid<R>],
+    kind: IndexKind,
+) -> Box<dyn SphereIndex<R> + '_> {
+    match kind {
+        IndexKind::Grid => Box::new(VoxelHashGrid::new(shapes)),
+        IndexKind::Brute => Box::new(BruteForce::new(shapes)),
     }
 }
 
@@ -174,18 +190,8 @@ pub fn eye_hit_map<R: Real>(scene: &Scene, kind: IndexKind) -> Vec<Option<u32>> 
 /// [`eye_hit_map`] with the eye moved to `eye` (the image plane moves with
 /// it), for checking that translating a whole scene leaves the map alone.
 pub fn eye_hit_map_from<R: Real>(scene: &Scene, kind: IndexKind, eye: DVec3) -> Vec<Option<u32>> {
-    let shapes: Vec<Ellipsoid<R>> = scene.spheres.iter().map(Ellipsoid::from_sphere).collect();
-    match kind {
-        IndexKind::Grid => hit_map_with(scene, &VoxelHashGrid::new(&shapes), eye),
-        IndexKind::Brute => hit_map_with(scene, &BruteForce::new(&shapes), eye),
-    }
-}
-
-fn hit_map_with<R: Real, I: SphereIndex<R>>(
-    scene: &Scene,
-    index: &I,
-    eye: DVec3,
-) -> Vec<Option<u32>> {
+    let shapes = shapes_of::<R>(scene);
+    let index = build_index(&shapes, kind);
     let sampler = PixelSampler::new(&scene.camera, 1);
     let (width, height) = (scene.camera.width, scene.camera.height);
     let origin = V3::<R>::from_dvec3(eye);
@@ -220,7 +226,7 @@ fn check_options(options: &RenderOptions) -> Result<(), RenderError> {
 
 /// Traces every pixel of `scene` against `index`, rows in parallel. The
 /// output depends only on the inputs, not on the thread count or schedule.
-pub fn render_with<R: Real, I: SphereIndex<R>>(
+pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
     scene: &Scene,
     shapes: &[Ellipsoid<R>],
     index: &I,

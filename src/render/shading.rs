@@ -17,7 +17,7 @@ enum Bounce {
     Refraction,
 }
 
-pub(super) struct Tracer<'a, R: Real, I> {
+pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     scene: &'a Scene,
     shapes: &'a [Ellipsoid<R>],
     index: &'a I,
@@ -32,7 +32,7 @@ pub(super) struct Tracer<'a, R: Real, I> {
     secondary_miss: DVec3,
 }
 
-impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
+impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     pub fn new(
         scene: &'a Scene,
         shapes: &'a [Ellipsoid<R>],
@@ -114,16 +114,17 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
         let id = hit.sphere as usize;
         let surface = self.shapes[id].surface_point(ray, hit.t);
         let m = &self.scene.spheres[id].material;
-        let direct = self.direct_light(&surface, m, -ray.dir.normalize(), counts);
+        let dir = ray.dir.normalize();
+        let direct = self.direct_light(&surface, m, -dir, counts);
         match self.scene.dialect {
             Dialect::Classic => {
                 let local = m.ambient * self.scene.ambient * m.color + direct;
-                local + self.bounces(ray, &surface, m, depth, weight, DVec3::splat, counts)
+                local + self.bounces(dir, &surface, m, depth, weight, DVec3::splat, counts)
             }
             Dialect::Browser => {
                 let local = (m.ambient * m.color + direct).min(DVec3::ONE);
                 let open = DVec3::ONE - local;
-                local + open * self.bounces(ray, &surface, m, depth, weight, |k| k * open, counts)
+                local + open * self.bounces(dir, &surface, m, depth, weight, |k| k * open, counts)
             }
         }
     }
@@ -189,12 +190,13 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
         base.max(R::zero())
     }
 
-    /// The reflected and refracted contributions, each weighted by `factor(k)`
-    /// (a plain coefficient in the classic model, blended in the browser one).
+    /// The reflected and refracted contributions of a ray arriving along the
+    /// unit direction `dir`, each weighted by `factor(k)` (a plain
+    /// coefficient in the classic model, blended in the browser one).
     #[allow(clippy::too_many_arguments)]
     fn bounces(
         &self,
-        ray: &Ray<R>,
+        dir: V3<R>,
         surface: &SurfacePoint<R>,
         m: &Material,
         depth: u32,
@@ -206,7 +208,6 @@ impl<'a, R: Real, I: SphereIndex<R>> Tracer<'a, R, I> {
         if depth >= self.max_depth {
             return sum;
         }
-        let dir = ray.dir.normalize();
         let n = surface.normal;
         for (k, bounce) in [
             (m.reflect, Bounce::Reflection),
