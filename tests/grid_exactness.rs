@@ -238,3 +238,127 @@ fn eye_rays_agree_on_every_kind_of_scene() {
         }
     }
 }
+
+/// A bundle of rays from one origin, of one of the kinds packets meet.
+fn bundle(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> (Vec3, Vec<Vec3>) {
+    let half = extent(shapes);
+    let pick = shapes[rng.below(shapes.len())];
+    let origin = match rng.below(4) {
+        0 => Vec3::ZERO,
+        1 => rng.point(half),
+        // Inside a sphere.
+        2 => pick.center,
+        // On a lattice point.
+        _ => rng.point(half).round(),
+    };
+    let count = [16, 16, 32, 7, 1, 40][rng.below(6)];
+    let toward = (pick.center - origin).normalize_or(Vec3::NEG_Z);
+    let side = toward.any_orthonormal_vector();
+    let up = toward.cross(side);
+    let spread = rng.log_range(1e-6, 0.5);
+    let dirs = (0..count)
+        .map(|i| match rng.below(8) {
+            // Through a tile around the picked sphere, like neighbouring pixels.
+            0..=4 => {
+                let (x, y) = ((i % 4) as f32 - 1.5, (i / 4 % 4) as f32 - 1.5);
+                toward + (side * x + up * y) * spread
+            }
+            // Axis-parallel with signed zeros, as far as the sign of travel goes.
+            5 => {
+                let mut d = [0.0f32; 3];
+                let a = toward.abs();
+                let axis = if a.x >= a.y && a.x >= a.z {
+                    0
+                } else if a.y >= a.z {
+                    1
+                } else {
+                    2
+                };
+                d[axis] = toward[axis].signum();
+                for (k, v) in d.iter_mut().enumerate() {
+                    if k != axis && rng.below(2) == 0 {
+                        *v = -0.0;
+                    }
+                }
+                Vec3::from_array(d)
+            }
+            // Through a lattice point.
+            6 => rng.point(half).round() - origin,
+            // Anywhere: the bundle loses its common direction.
+            _ => rng.point(1.0),
+        })
+        .collect();
+    (origin, dirs)
+}
+
+fn check_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
+    let brute = BruteForce::new(shapes);
+    let grid = VoxelHashGrid::new(shapes);
+    let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
+    let mut rng = Rng(seed ^ 0xb0b);
+    for _ in 0..bundles {
+        let (origin, dirs) = bundle(&mut rng, shapes);
+        for (t_min, t_max) in [
+            (0.0, f32::INFINITY),
+            (1.0, f32::INFINITY),
+            (0.0, 1.0),
+            (-0.5, f32::INFINITY),
+        ] {
+            let want: Vec<_> = dirs
+                .iter()
+                .map(|&d| brute.closest_hit(&Ray::new(origin, d), t_min, t_max))
+                .collect();
+            for index in [&grid, &probing] {
+                let mut got = vec![None; dirs.len()];
+                index.closest_hits(origin, &dirs, t_min, t_max, &mut got);
+                assert_eq!(got, want, "from {origin} in ({t_min}, {t_max}): {dirs:?}");
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    #[test]
+    fn packets_agree_with_brute_force(kind in kinds(), seed in any::<u64>()) {
+        check_packets(&scene(kind, seed), seed, 40);
+    }
+}
+
+/// Eye rays in 4×4 pixel tiles, as the renderer traces them, at a resolution
+/// where a tile is a small fraction of a cell and where it spans several.
+#[test]
+fn eye_tiles_agree_on_every_kind_of_scene() {
+    let kinds = [
+        Kind::Mixed,
+        Kind::Clustered,
+        Kind::HugeAndTiny,
+        Kind::OnCorners,
+        Kind::Ellipsoids,
+    ];
+    for (i, kind) in kinds.into_iter().enumerate() {
+        let shapes = scene(kind, 11 + i as u64);
+        let brute = BruteForce::new(&shapes);
+        let grid = VoxelHashGrid::new(&shapes);
+        for pixels in [64, 1024] {
+            let step = 2.0 / pixels as f32;
+            for ty in (0..pixels).step_by(4 * pixels / 64) {
+                for tx in (0..pixels).step_by(4 * pixels / 64) {
+                    let dirs: Vec<Vec3> = (0..16)
+                        .map(|j| {
+                            let (x, y) = ((tx + j % 4) as f32, (ty + j / 4) as f32);
+                            Vec3::new(-1.0 + (x + 0.5) * step, -1.0 + (y + 0.5) * step, -1.0)
+                        })
+                        .collect();
+                    let mut got = vec![None; 16];
+                    grid.closest_hits(Vec3::ZERO, &dirs, 1.0, f32::INFINITY, &mut got);
+                    for (d, hit) in dirs.iter().zip(&got) {
+                        let want = brute.closest_hit(&Ray::new(Vec3::ZERO, *d), 1.0, f32::INFINITY);
+                        assert_eq!(*hit, want, "{kind:?} {d}");
+                    }
+                }
+            }
+        }
+    }
+}

@@ -5,7 +5,7 @@ mod ellipsoid;
 mod real;
 mod spawn;
 
-pub use ellipsoid::{Ellipsoid, SurfacePoint};
+pub use ellipsoid::{Ellipsoid, SurfacePoint, UnitSphereFrame};
 pub use real::{Real, Vec3Ops, V3};
 pub use spawn::spawn_origin;
 

@@ -8,9 +8,9 @@ mod brute;
 pub mod grid;
 
 pub use brute::BruteForce;
-pub use grid::{EmptySpace, VoxelHashGrid};
+pub use grid::{EmptySpace, VoxelHashGrid, PACKET_LANES};
 
-use crate::geometry::{Ray, Real};
+use crate::geometry::{Ray, Real, V3};
 
 /// The nearest sphere a ray meets and where along the ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,6 +31,21 @@ impl<R: Real> Hit<R> {
 pub trait SphereIndex<R: Real>: Sync {
     /// The nearest hit with t in the open interval (t_min, t_max).
     fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>>;
+    /// [`Self::closest_hit`] for rays that share an origin (eye rays), into
+    /// `out` (as long as `dirs`). Coherent neighbours should be adjacent:
+    /// an index may trace them together.
+    fn closest_hits(
+        &self,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) {
+        for (dir, hit) in dirs.iter().zip(out) {
+            *hit = self.closest_hit(&Ray::new(origin, *dir), t_min, t_max);
+        }
+    }
     /// Whether any sphere meets the ray with t in (0, t_max). Shadow rays.
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool;
 }

@@ -33,22 +33,35 @@ impl PixelSampler {
         )
     }
 
-    /// The mean of `radiance` over the pixel's samples, each clamped to [0, 1]
-    /// first so that one very bright sample cannot outweigh the rest.
+    /// The mean of `radiance` over the pixel's samples: [`Self::combine`]
+    /// over [`Self::directions`].
     pub fn average(
         &self,
         column: u32,
         row: u32,
         mut radiance: impl FnMut(DVec3) -> DVec3,
     ) -> DVec3 {
+        let mut directions = Vec::with_capacity(self.spp as usize);
+        self.directions(column, row, &mut directions);
+        self.combine(directions.into_iter().map(&mut radiance))
+    }
+
+    /// Samples per pixel.
+    pub fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    /// Appends the eye-ray directions of the pixel's samples to `out`, in
+    /// sample order.
+    pub fn directions(&self, column: u32, row: u32, out: &mut Vec<DVec3>) {
         let (x, y) = (f64::from(column), f64::from(row));
         if self.spp == 1 {
-            return radiance(self.direction(x, y));
+            out.push(self.direction(x, y));
+            return;
         }
         let mut rng = PixelRng::new(column, row);
         let n = self.spp;
         let side = (f64::from(n).sqrt().round() as u32).max(1);
-        let mut sum = DVec3::ZERO;
         for i in 0..n {
             let (u, v) = if side * side == n {
                 (
@@ -64,9 +77,20 @@ impl PixelSampler {
                     (f64::from(j) + rng.next()) / f64::from(n),
                 )
             };
-            sum += radiance(self.direction(x + u, y + v)).clamp(DVec3::ZERO, DVec3::ONE);
+            out.push(self.direction(x + u, y + v));
         }
-        sum / f64::from(n)
+    }
+
+    /// The pixel's colour from its samples' radiances in sample order: one
+    /// sample as it is, more each clamped to [0, 1] first (so that one very
+    /// bright sample cannot outweigh the rest) and averaged.
+    pub fn combine(&self, radiances: impl IntoIterator<Item = DVec3>) -> DVec3 {
+        let mut radiances = radiances.into_iter();
+        if self.spp == 1 {
+            return radiances.next().unwrap_or(DVec3::ZERO);
+        }
+        let sum = radiances.fold(DVec3::ZERO, |sum, r| sum + r.clamp(DVec3::ZERO, DVec3::ONE));
+        sum / f64::from(self.spp)
     }
 }
 

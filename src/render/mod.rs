@@ -242,22 +242,22 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
     let totals: [AtomicU64; 4] = Default::default();
     let rows_done = AtomicU32::new(0);
     let timed_out = AtomicBool::new(false);
-    rgb.par_chunks_mut(width * 3)
+    rgb.par_chunks_mut(width * 3 * TILE)
         .enumerate()
-        .for_each(|(row, out)| {
-            if timed_out.load(Ordering::Relaxed)
-                || options.deadline.is_some_and(|d| Instant::now() > d)
-            {
-                timed_out.store(true, Ordering::Relaxed);
-                return;
-            }
+        .for_each(|(band, out)| {
+            // Checked before every tile, so that a costly scene stops soon
+            // after its deadline.
+            let expired = || {
+                let expired = timed_out.load(Ordering::Relaxed)
+                    || options.deadline.is_some_and(|d| Instant::now() > d);
+                if expired {
+                    timed_out.store(true, Ordering::Relaxed);
+                }
+                expired
+            };
             let mut counts = RayCounts::default();
-            for (column, pixel) in out.chunks_exact_mut(3).enumerate() {
-                let color = sampler.average(column as u32, row as u32, |dir| {
-                    tracer.trace_eye(dir, &mut counts)
-                });
-                pixel.copy_from_slice(&to_bytes(color));
-            }
+            let rows = (band * TILE) as u32..((band + 1) * TILE).min(height) as u32;
+            render_band(&tracer, &sampler, rows.clone(), out, &mut counts, &expired);
             for (total, n) in totals.iter().zip([
                 counts.eye,
                 counts.shadow,
@@ -266,7 +266,7 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
             ]) {
                 total.fetch_add(n, Ordering::Relaxed);
             }
-            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
+            progress(rows_done.fetch_add(rows.len() as u32, Ordering::Relaxed) + rows.len() as u32);
         });
     if timed_out.into_inner() {
         return Err(RenderError::TimedOut);
@@ -285,6 +285,59 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
             render_time: started.elapsed(),
         },
     })
+}
+
+/// Side of the square tiles of pixels whose eye rays are traced together:
+/// 4×4 pixels give [`crate::index::PACKET_LANES`] rays per sample.
+const TILE: usize = 4;
+
+/// Renders the rows `rows` (at most [`TILE`] of them) into `out`, tile by
+/// tile, until `expired` says to stop. A tile's eye rays go to the index together, sample by sample across
+/// its pixels (neighbouring rays, which a packet walks at once), and each
+/// pixel then combines its own samples in order, exactly as one pixel at a
+/// time would.
+fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
+    tracer: &Tracer<R, I>,
+    sampler: &PixelSampler,
+    rows: std::ops::Range<u32>,
+    out: &mut [u8],
+    counts: &mut RayCounts,
+    expired: &dyn Fn() -> bool,
+) {
+    let width = (out.len() / 3 / rows.len()) as u32;
+    let spp = sampler.spp() as usize;
+    let (mut samples, mut dirs, mut hits) = (Vec::new(), Vec::new(), Vec::new());
+    for x0 in (0..width).step_by(TILE) {
+        if expired() {
+            return;
+        }
+        let pixels: Vec<(u32, u32)> = rows
+            .clone()
+            .flat_map(|y| (x0..(x0 + TILE as u32).min(width)).map(move |x| (x, y)))
+            .collect();
+        let n = pixels.len();
+        // Sample-major: dirs[s·n + p] is sample s of pixel p.
+        dirs.clear();
+        dirs.resize(n * spp, V3::<R>::ZERO);
+        for (p, &(x, y)) in pixels.iter().enumerate() {
+            samples.clear();
+            sampler.directions(x, y, &mut samples);
+            for (s, &d) in samples.iter().enumerate() {
+                dirs[s * n + p] = V3::<R>::from_dvec3(d);
+            }
+        }
+        hits.clear();
+        hits.resize(dirs.len(), None);
+        tracer.eye_hits(&dirs, &mut hits);
+        for (p, &(x, y)) in pixels.iter().enumerate() {
+            let color = sampler.combine((0..spp).map(|s| {
+                let i = s * n + p;
+                tracer.shade_eye(dirs[i], hits[i], counts)
+            }));
+            let at = (((y - rows.start) * width + x) * 3) as usize;
+            out[at..at + 3].copy_from_slice(&to_bytes(color));
+        }
+    }
 }
 
 /// Clamps to [0, 1] and quantises as the course did: `floor(255·c)`.

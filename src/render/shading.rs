@@ -70,11 +70,19 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         }
     }
 
-    /// The colour seen along an eye ray: the nearest hit beyond the near plane (t > 1).
-    pub fn trace_eye(&self, dir: DVec3, counts: &mut RayCounts) -> DVec3 {
+    /// The nearest hits of eye rays with directions `dirs` (in the geometry's
+    /// precision) beyond the near plane (t > 1), searched together.
+    pub fn eye_hits(&self, dirs: &[V3<R>], out: &mut [Option<Hit<R>>]) {
+        self.index
+            .closest_hits(V3::<R>::ZERO, dirs, R::one(), R::infinity(), out);
+    }
+
+    /// The colour seen along the eye ray with direction `dir`, whose nearest
+    /// hit beyond the near plane is `hit`.
+    pub fn shade_eye(&self, dir: V3<R>, hit: Option<Hit<R>>, counts: &mut RayCounts) -> DVec3 {
         counts.eye += 1;
-        let ray = Ray::new(V3::<R>::ZERO, V3::<R>::from_dvec3(dir));
-        match self.index.closest_hit(&ray, R::one(), R::infinity()) {
+        let ray = Ray::new(V3::<R>::ZERO, dir);
+        match hit {
             Some(hit) => self.shade(&ray, hit, 0, DVec3::ONE, counts),
             None => match self.scene.dialect {
                 Dialect::Classic => self.scene.background,

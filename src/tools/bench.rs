@@ -11,7 +11,7 @@
 
 use super::gen::{generate, Distribution, GenOptions, Rng};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Vec3Ops, V3};
-use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid};
+use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_LANES};
 use crate::render::PixelSampler;
 use crate::scene::{self, Scene, SceneError};
 use rayon::prelude::*;
@@ -40,7 +40,10 @@ pub struct BenchResult {
     pub build_s: f64,
     pub index_bytes_per_sphere: f64,
     pub levels: usize,
+    /// Eye rays in packets of [`PACKET_LANES`] (4×4 pixel tiles), as the renderer traces them.
     pub primary_mrays_s: f64,
+    /// Eye rays one at a time.
+    pub primary_single_mrays_s: f64,
     pub shadow_mrays_s: f64,
     /// Primary rays when every cell costs a probe (no empty-block skipping).
     pub primary_mrays_s_probe_every_cell: f64,
@@ -139,7 +142,9 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
     let eye = eye_rays(&scene);
 
     let mut hits = Vec::new();
-    let primary_s = timed(|| hits = primary_pass(&grid, &eye));
+    let primary_s = timed(|| hits = primary_packets(&grid, &eye));
+    let mut single = Vec::new();
+    let single_s = timed(|| single = primary_pass(&grid, &eye));
     let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
     let probing_s = timed(|| drop(primary_pass(&probing, &eye)));
     let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
@@ -160,6 +165,7 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
         index_bytes_per_sphere: grid.bytes() as f64 / shapes.len().max(1) as f64,
         levels: grid.levels().len(),
         primary_mrays_s: primary,
+        primary_single_mrays_s: mrays(eye.len(), single_s),
         shadow_mrays_s: mrays(shadow.len(), shadow_s),
         primary_mrays_s_probe_every_cell: mrays(eye.len(), probing_s),
         brute_primary_mrays_s: brute,
@@ -169,16 +175,41 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
     })
 }
 
+/// One eye ray per pixel, in 4×4 tiles (tile rows from the top, pixels
+/// row-major within a tile), so that each run of [`PACKET_LANES`] rays is a tile.
 fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
     let sampler = PixelSampler::new(&scene.camera, 1);
     let (w, h) = (scene.camera.width, scene.camera.height);
-    (0..w * h)
+    let tiles_across = w.div_ceil(TILE);
+    let tiles = tiles_across * h.div_ceil(TILE);
+    (0..tiles)
         .into_par_iter()
-        .map(|i| {
-            let dir = sampler.direction(f64::from(i % w), f64::from(i / w));
+        .flat_map_iter(|tile| {
+            let (x0, y0) = (tile % tiles_across * TILE, tile / tiles_across * TILE);
+            (y0..(y0 + TILE).min(h))
+                .flat_map(move |y| (x0..(x0 + TILE).min(w)).map(move |x| (x, y)))
+        })
+        .map(|(x, y)| {
+            let dir = sampler.direction(f64::from(x), f64::from(y));
             Ray::new(V3::<f32>::ZERO, V3::<f32>::from_dvec3(dir))
         })
         .collect()
+}
+
+/// Side of the square tiles eye rays are grouped in.
+const TILE: u32 = 4;
+
+/// Primary rays in packets: each run of [`PACKET_LANES`] rays traced together.
+fn primary_packets(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<Hit<f32>>> {
+    let mut hits = vec![None; rays.len()];
+    rays.par_chunks(PACKET_LANES)
+        .zip(hits.par_chunks_mut(PACKET_LANES))
+        .with_min_len(16)
+        .for_each(|(rays, out)| {
+            let dirs: Vec<V3<f32>> = rays.iter().map(|r| r.dir).collect();
+            index.closest_hits(V3::<f32>::ZERO, &dirs, 1.0, f32::INFINITY, out);
+        });
+    hits
 }
 
 fn primary_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<Hit<f32>>> {
@@ -246,12 +277,12 @@ fn brute_rate(shapes: &[Ellipsoid<f32>], eye: &[Ray<f32>]) -> (usize, f64) {
 /// The figures as a Markdown table.
 pub fn markdown_table(results: &[BenchResult]) -> String {
     let mut out = String::from(
-        "| scene | spheres | parse s | build s | index B/sphere | levels | primary Mrays/s | shadow Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | spheres | parse s | build s | index B/sphere | levels | primary Mrays/s | primary single-ray Mrays/s | shadow Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in results {
         out += &format!(
-            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.4} | {:.0}× |\n",
+            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.4} | {:.0}× |\n",
             r.scene,
             r.spheres,
             r.parse_s,
@@ -259,6 +290,7 @@ pub fn markdown_table(results: &[BenchResult]) -> String {
             r.index_bytes_per_sphere,
             r.levels,
             r.primary_mrays_s,
+            r.primary_single_mrays_s,
             r.shadow_mrays_s,
             r.primary_mrays_s_probe_every_cell,
             r.brute_primary_mrays_s,

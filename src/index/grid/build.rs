@@ -137,15 +137,32 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
     ids.len() as f64 / occupied.max(1.0)
 }
 
-/// The levels of `shapes`, coarsest first.
-pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Vec<Level> {
+/// What the build hands the grid.
+pub struct Built {
+    /// Coarsest first.
+    pub levels: Vec<Level>,
+    /// The order the grid keeps its copies of the spheres in: the levels'
+    /// candidate lists index it, and its entry i is a sphere id.
+    pub order: Vec<u32>,
+    /// Per sphere id, the radius of a ball around its centre that holds every
+    /// point a rounded hit test can report, wherever along the ray: the reach
+    /// plus the slack.
+    pub bound: Vec<f64>,
+}
+
+/// The levels of `shapes` and the order of the grid's sphere copies.
+pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
     let m = shapes
         .par_iter()
         .map(|s| (s.center.to_dvec3().abs() + s.scale.to_dvec3().abs()).max_element())
         .reduce(|| 0.0, f64::max);
     if !m.is_finite() {
         // Only finite scenes get an index; the parser guarantees this one.
-        return Vec::new();
+        return Built {
+            levels: Vec::new(),
+            order: Vec::new(),
+            bound: Vec::new(),
+        };
     }
     let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
     let mut bands: BTreeMap<i32, Vec<u32>> = BTreeMap::new();
@@ -159,14 +176,22 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Vec<Level> {
         let cell = choose_cell(&extents, &ids);
         by_cell.entry(cell.to_bits()).or_default().extend(ids);
     }
-    by_cell
+    let mut order = Vec::with_capacity(shapes.len());
+    let mut rank = vec![u32::MAX; shapes.len()];
+    let levels = by_cell
         .into_iter()
         .rev()
         .map(|(cell, mut ids)| {
             ids.sort_unstable();
-            build_level(&extents, &ids, f64::from_bits(cell))
+            build_level(&extents, &ids, f64::from_bits(cell), &mut rank, &mut order)
         })
-        .collect()
+        .collect();
+    let bound = extents.par_iter().map(|e| e.reach + e.slack).collect();
+    Built {
+        levels,
+        order,
+        bound,
+    }
 }
 
 /// The cell side of a band: the smallest power of two at least its largest
@@ -189,7 +214,15 @@ fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
     cell
 }
 
-fn build_level(extents: &[Extent], ids: &[u32], mut cell: f64) -> Level {
+/// Builds one level over `ids`, appending them to `order` as described in
+/// [`number_in_cell_order`].
+fn build_level(
+    extents: &[Extent],
+    ids: &[u32],
+    mut cell: f64,
+    rank: &mut [u32],
+    order: &mut Vec<u32>,
+) -> Level {
     let (lo, hi, slack) = ids
         .par_iter()
         .map(|&id| {
@@ -222,7 +255,8 @@ fn build_level(extents: &[Extent], ids: &[u32], mut cell: f64) -> Level {
         })
         .collect();
     pairs.par_sort_unstable();
-    let (blocks, cell_start, candidates) = compress(&pairs);
+    number_in_cell_order(&pairs, rank, order);
+    let (blocks, cell_start, candidates) = compress(&pairs, rank);
     Level {
         cell,
         origin: lo,
@@ -240,10 +274,26 @@ fn sort_key(c: [i64; 3]) -> u64 {
     block_key(c.map(|v| v >> BLOCK_SHIFT)) << 6 | u64::from(cell_bit(c))
 }
 
+/// Numbers the spheres of sorted (cell, id) pairs in the order they first
+/// appear (`rank[id]`, counting on from `order.len()`), and appends them to
+/// `order` so. A sphere first appears in the cell its box's low corner is in,
+/// so a cell's own spheres get consecutive numbers and neighbouring cells
+/// nearby ones: the grid's copies of the spheres a ray tests in one cell,
+/// and in the next, share cache lines instead of lying anywhere in the array.
+fn number_in_cell_order(pairs: &[(u64, u32)], rank: &mut [u32], order: &mut Vec<u32>) {
+    for &(_, id) in pairs {
+        let r = &mut rank[id as usize];
+        if *r == u32::MAX {
+            *r = order.len() as u32;
+            order.push(id);
+        }
+    }
+}
+
 /// From sorted (cell, id) pairs to the blocks, the CSR offsets of the
-/// occupied cells, and the flat id array.
-fn compress(pairs: &[(u64, u32)]) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    let ids: Vec<u32> = pairs.par_iter().map(|&(_, id)| id).collect();
+/// occupied cells, and the flat array of the spheres' numbers (`rank`).
+fn compress(pairs: &[(u64, u32)], rank: &[u32]) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
+    let ids: Vec<u32> = pairs.par_iter().map(|&(_, id)| rank[id as usize]).collect();
     let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
     let mut cell_start: Vec<u32> = Vec::new();
     let mut previous = u64::MAX;

@@ -13,12 +13,15 @@
 //! grid returns exactly the sphere and t that [`super::BruteForce`] returns.
 
 mod build;
+mod packet;
 mod table;
 mod walk;
 
 use super::{Hit, SphereIndex};
-use crate::geometry::{Ellipsoid, Ray, Real};
+use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
+pub use packet::LANES as PACKET_LANES;
+use rayon::prelude::*;
 use table::BlockTable;
 use walk::Ray64;
 
@@ -70,8 +73,20 @@ impl Level {
     }
 }
 
-pub struct VoxelHashGrid<'a, R: Real> {
-    shapes: &'a [Ellipsoid<R>],
+/// The grid's copy of a sphere: what the hit test reads, and which sphere it is.
+#[derive(Clone, Copy, Debug)]
+struct Candidate<R: Real> {
+    frame: UnitSphereFrame<R>,
+    /// A radius around the centre no rounded hit lies beyond (rounded up from
+    /// [`build::Built::bound`]), for culling against a packet's cone.
+    bound: R,
+    id: u32,
+}
+
+pub struct VoxelHashGrid<R: Real> {
+    /// The spheres in the order the levels' cells list them (see
+    /// [`build`]): the candidates of one cell lie together in memory.
+    spheres: Vec<Candidate<R>>,
     /// Coarsest first: big spheres bound the search of the small ones.
     levels: Vec<Level>,
     empty_space: EmptySpace,
@@ -97,12 +112,25 @@ impl Mailbox {
     }
 }
 
-impl<'a, R: Real> VoxelHashGrid<'a, R> {
+impl<R: Real> VoxelHashGrid<R> {
     /// Builds the grid in parallel on the current rayon pool.
-    pub fn new(shapes: &'a [Ellipsoid<R>]) -> Self {
+    pub fn new(shapes: &[Ellipsoid<R>]) -> Self {
+        let build::Built {
+            levels,
+            order,
+            bound,
+        } = build::levels(shapes);
+        let spheres = order
+            .par_iter()
+            .map(|&id| Candidate {
+                frame: shapes[id as usize].frame(),
+                bound: R::from_f64(bound[id as usize]).next_up(),
+                id,
+            })
+            .collect();
         VoxelHashGrid {
-            shapes,
-            levels: build::levels(shapes),
+            spheres,
+            levels,
             empty_space: EmptySpace::default(),
         }
     }
@@ -113,9 +141,11 @@ impl<'a, R: Real> VoxelHashGrid<'a, R> {
         self
     }
 
-    /// Bytes the index holds beyond the sphere array.
+    /// Bytes the index holds beyond the sphere array (its compact copies of
+    /// the spheres included).
     pub fn bytes(&self) -> usize {
         self.levels.iter().map(Level::bytes).sum::<usize>()
+            + self.spheres.capacity() * std::mem::size_of::<Candidate<R>>()
             + self.levels.capacity() * std::mem::size_of::<Level>()
     }
 
@@ -132,7 +162,7 @@ impl<'a, R: Real> VoxelHashGrid<'a, R> {
     }
 }
 
-impl<R: Real> SphereIndex<R> for VoxelHashGrid<'_, R> {
+impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
     fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
         let mut best: Option<Hit<R>> = None;
@@ -146,15 +176,19 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<'_, R> {
                 reach,
                 self.empty_space,
                 |ids| {
-                    for &id in ids {
-                        if !mailbox.first_visit(id) {
+                    for &i in ids {
+                        if !mailbox.first_visit(i) {
                             continue;
                         }
+                        let sphere = &self.spheres[i as usize];
                         // Up to and including the best t, so that an equal t
                         // with a lower id still wins, as in brute force.
                         let cap = best.map_or(t_max, |b| b.t.next_up());
-                        if let Some(t) = self.shapes[id as usize].intersect(ray, t_min, cap) {
-                            let hit = Hit { t, sphere: id };
+                        if let Some(t) = sphere.frame.intersect(ray, t_min, cap) {
+                            let hit = Hit {
+                                t,
+                                sphere: sphere.id,
+                            };
                             if best.is_none_or(|b| hit.is_before(&b)) {
                                 best = Some(hit);
                             }
@@ -165,6 +199,17 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<'_, R> {
             );
         }
         best
+    }
+
+    fn closest_hits(
+        &self,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) {
+        self.packet_closest_hits(origin, dirs, t_min, t_max, out);
     }
 
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
@@ -181,9 +226,10 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<'_, R> {
                 t_max.to_f64() + slack,
                 self.empty_space,
                 |ids| {
-                    found = ids.iter().any(|&id| {
-                        mailbox.first_visit(id)
-                            && self.shapes[id as usize]
+                    found = ids.iter().any(|&i| {
+                        mailbox.first_visit(i)
+                            && self.spheres[i as usize]
+                                .frame
                                 .intersect(ray, R::zero(), t_max)
                                 .is_some()
                     });

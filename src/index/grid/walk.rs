@@ -13,8 +13,8 @@ use crate::geometry::{Ray, Real, Vec3Ops};
 
 /// A ray in f64, with its length for turning distances into t.
 pub struct Ray64 {
-    o: [f64; 3],
-    d: [f64; 3],
+    pub o: [f64; 3],
+    pub d: [f64; 3],
     inv: [f64; 3],
     pub length: f64,
 }
@@ -36,7 +36,7 @@ impl Ray64 {
 /// ⌊x⌋ as an integer (saturating), without the libm call `f64::floor`
 /// becomes on CPUs the build does not assume SSE4.1 for.
 #[inline(always)]
-fn floor_to_int(x: f64) -> i64 {
+pub(super) fn floor_to_int(x: f64) -> i64 {
     let truncated = x as i64;
     truncated - i64::from((truncated as f64) > x)
 }
@@ -60,7 +60,7 @@ fn first_axis(t: &[f64; 3]) -> usize {
 impl Level {
     /// The t at which the ray crosses the plane between cells `i − 1` and `i` on `axis`.
     #[inline(always)]
-    fn plane_t(&self, ray: &Ray64, axis: usize, i: i64) -> f64 {
+    pub(super) fn plane_t(&self, ray: &Ray64, axis: usize, i: i64) -> f64 {
         (self.origin[axis] + i as f64 * self.cell - ray.o[axis]) * ray.inv[axis]
     }
 
@@ -75,7 +75,7 @@ impl Level {
     }
 
     /// The part of [t_lo, t_hi] the ray spends inside this level's box.
-    fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
+    pub(super) fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (t_lo, t_hi);
         for a in 0..3 {
             let lo = self.origin[a];
@@ -95,7 +95,7 @@ impl Level {
 
     /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.
     #[inline(always)]
-    fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
+    pub(super) fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
         let p = ray.o[axis] + t * ray.d[axis];
         floor_to_int((p - self.origin[axis]) / self.cell).clamp(lo, hi)
     }

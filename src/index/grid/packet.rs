@@ -1,0 +1,544 @@
+//! Packets: rays from one origin walked through each level together.
+//!
+//! Eye rays leave one point in nearly the same direction, so neighbouring
+//! pixels cross the same cells and meet the same candidates; walked one at a
+//! time they repeat every cell step, probe and sphere fetch. A packet walks a
+//! level once, slab by slab along an axis all its rays travel the same way
+//! (the coherent grid traversal of Wald et al., "Ray Tracing Animated Scenes
+//! using Coherent Grid Traversal", 2006). In each slab (one cell thick) the
+//! rays' segments span a rectangle of cells; every candidate of the occupied
+//! cells there is tested against all the rays at once, in lanes the compiler
+//! turns into SIMD; and the packet moves on while any of its rays still wants
+//! cells that far. A layer of slabs one block thick whose rectangle meets only
+//! empty blocks is crossed with one probe per block.
+//!
+//! # Why it returns what brute force returns
+//! - Every cell a ray crosses within a slab lies in the rectangle: a ray's
+//!   segment in a slab is straight, and the rectangle bounds both its ends.
+//! - A ray stops wanting cells under the single walk's rule: once its best t
+//!   plus the level's slack lies before the slab it would enter next.
+//! - Testing a ray against a sphere from a cell it never crosses can only find
+//!   a true hit, which brute force finds too; the nearest (t, id) wins
+//!   whatever the order of the tests.
+//! - The lanes compute exactly the operations of [`crate::geometry::Ellipsoid::intersect`], in
+//!   the same order (no fused multiply-adds: Rust does not contract), so every
+//!   lane rounds exactly as the one-ray test does.
+
+use super::table::{block_key, cell_bit, Block, BLOCK_SHIFT};
+use super::walk::Ray64;
+use super::{EmptySpace, Level, VoxelHashGrid};
+use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
+use crate::index::{Hit, SphereIndex};
+use glam::DVec3;
+
+/// Rays per packet. Sixteen eye rays of a 4×4 tile of pixels span a few
+/// cells per slab; more lanes test more spheres a lane's ray never meets.
+pub const LANES: usize = 16;
+
+/// The rays of one packet, laid out for the lane-wise sphere test, and the
+/// best hit of each so far.
+struct Lanes<R: Real> {
+    origin: V3<R>,
+    /// Direction components, one array per axis.
+    dir: [[R; LANES]; 3],
+    best_t: [R; LANES],
+    best_id: [u32; LANES],
+    /// A hit counts up to and including the best t so far (so that an equal
+    /// t with a lower id still wins, as in brute force): `best_t.next_up()`.
+    cap: [R; LANES],
+    t_min: R,
+}
+
+impl<R: Real> Lanes<R> {
+    fn new(origin: V3<R>, dirs: &[V3<R>; LANES], t_min: R, t_max: R) -> Self {
+        Lanes {
+            origin,
+            dir: [
+                dirs.map(|d| d.x()),
+                dirs.map(|d| d.y()),
+                dirs.map(|d| d.z()),
+            ],
+            best_t: [R::infinity(); LANES],
+            best_id: [u32::MAX; LANES],
+            cap: [t_max; LANES],
+            t_min,
+        }
+    }
+
+    /// [`UnitSphereFrame::intersect`] for every lane at once, keeping each lane's
+    /// nearest (t, id).
+    // The lane loops index several arrays in step, which is what the compiler
+    // turns into SIMD.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn test(&mut self, shape: &UnitSphereFrame<R>, id: u32) {
+        let s = shape.inv_scale;
+        // The origin is shared, so `f` and `c` are the same for every lane.
+        let f = (self.origin - shape.center) * s;
+        let c = f.dot(f) - R::one();
+        let (fx, fy, fz) = (f.x(), f.y(), f.z());
+        let (sx, sy, sz) = (s.x(), s.y(), s.z());
+        let one = R::one();
+        let mut found = [R::nan(); LANES];
+        for i in 0..LANES {
+            let (ex, ey, ez) = (
+                self.dir[0][i] * sx,
+                self.dir[1][i] * sy,
+                self.dir[2][i] * sz,
+            );
+            let a = ex * ex + ey * ey + ez * ez;
+            let b = fx * ex + fy * ey + fz * ez;
+            let k = b / a;
+            let (lx, ly, lz) = (fx - ex * k, fy - ey * k, fz - ez * k);
+            let k = (lx * ex + ly * ey + lz * ez) / a;
+            let (lx, ly, lz) = (lx - ex * k, ly - ey * k, lz - ez * k);
+            let disc = a * (one - (lx * lx + ly * ly + lz * lz));
+            let q = -(b + disc.sqrt().copysign(b));
+            let (t0, t1) = (c / q, q / a);
+            let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+            let cap = self.cap[i];
+            let t = if near > self.t_min && near < cap {
+                near
+            } else if far > self.t_min && far < cap {
+                far
+            } else {
+                R::nan()
+            };
+            // A NaN or negative discriminant: the line misses.
+            found[i] = if disc >= R::zero() { t } else { R::nan() };
+        }
+        for i in 0..LANES {
+            let t = found[i];
+            // NaN (no hit) fails both comparisons.
+            if t < self.best_t[i] || (t == self.best_t[i] && id < self.best_id[i]) {
+                self.best_t[i] = t;
+                self.best_id[i] = id;
+                self.cap[i] = t.next_up();
+            }
+        }
+    }
+
+    fn hit(&self, lane: usize) -> Option<Hit<R>> {
+        (self.best_id[lane] != u32::MAX).then(|| Hit {
+            t: self.best_t[lane],
+            sphere: self.best_id[lane],
+        })
+    }
+}
+
+/// The packet's rays in f64 for the walk, and the axis it slabs along.
+struct Packet {
+    rays: [Ray64; LANES],
+    /// An axis every ray travels along in the same direction.
+    axis: usize,
+    step: i64,
+    /// Per ray, how far it moves across the slabs per unit along `axis`: on
+    /// the two other axes (`axis + 1`, `axis + 2`, mod 3), `d_u / d_axis`.
+    slope: [[f64; LANES]; 2],
+}
+
+impl Packet {
+    /// None when the rays share no axis of travel (or one cannot be walked):
+    /// those rays go one at a time.
+    fn new<R: Real>(origin: V3<R>, dirs: &[V3<R>; LANES]) -> Option<Packet> {
+        let mut rays = Vec::with_capacity(LANES);
+        for &dir in dirs {
+            rays.push(Ray64::new(&Ray::<R>::new(origin, dir))?);
+        }
+        let rays: [Ray64; LANES] = rays.try_into().ok()?;
+        // How steeply the shallowest ray travels along `axis` (0 when some
+        // ray runs parallel to it or the other way).
+        let steepness = |axis: usize| {
+            let positive = rays[0].d[axis] > 0.0;
+            rays.iter()
+                .map(|r| {
+                    let d = r.d[axis];
+                    if d != 0.0 && (d > 0.0) == positive {
+                        d.abs() / r.length
+                    } else {
+                        0.0
+                    }
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        // The steepest axis gives the thinnest slab rectangles.
+        let axis = (0..3).max_by(|&a, &b| steepness(a).total_cmp(&steepness(b)))?;
+        let steepness = steepness(axis);
+        let slope = [1, 2].map(|j| rays.each_ref().map(|r| r.d[(axis + j) % 3] / r.d[axis]));
+        (steepness > 0.0).then(|| Packet {
+            step: if rays[0].d[axis] > 0.0 { 1 } else { -1 },
+            rays,
+            axis,
+            slope,
+        })
+    }
+
+    /// The least and greatest slope of the rays in `live`, per cross axis.
+    fn slope_range(&self, live: u32) -> SlopeRange {
+        let mut range = SlopeRange {
+            lo: [f64::INFINITY; 2],
+            hi: [f64::NEG_INFINITY; 2],
+        };
+        for (j, slopes) in self.slope.iter().enumerate() {
+            for (i, &m) in slopes.iter().enumerate() {
+                if live >> i & 1 != 0 {
+                    range.lo[j] = range.lo[j].min(m);
+                    range.hi[j] = range.hi[j].max(m);
+                }
+            }
+        }
+        range
+    }
+}
+
+/// The spread of a set of the packet's rays across the slabs.
+struct SlopeRange {
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+/// A cone from the packet's origin that holds all its rays. A sphere whose
+/// bounding ball lies wholly outside it meets none of them, so its lane
+/// test (sixteen of them) is skipped for one scalar test.
+///
+/// # Why skipping is exact
+/// Let a be the axis, α the half-angle (every ray direction d has
+/// ∠(a, d) ≤ α), and B the ball of radius ρ (the candidate's `bound`) around
+/// the centre C, seen from the apex O under the half-angle β = asin(ρ/|w|),
+/// w = C − O, when |w| > ρ. A rounded hit at t ≥ 0 lies in B, so its
+/// direction d from O has ∠(d, w) ≤ β, and ∠(a, w) ≤ ∠(a, d) + ∠(d, w) ≤
+/// α + β. Hence ∠(a, w) > α + β rules every ray out. In cosines (α < π/2
+/// and β ≤ π/2, so α + β < π where cos falls):
+/// `a·w < |w|·cos(α + β) = cos α·√(|w|² − ρ²) − sin α·ρ`. The bound ρ holds
+/// the slack, so a rounded hit at t ≥ 0 whose true point lies behind the
+/// apex is inside B too. Only packets with `t_min ≥ 0` get a cone; the
+/// f64 arithmetic here is widened by [`CONE_MARGIN`], far above its rounding.
+struct Cone {
+    apex: DVec3,
+    axis: DVec3,
+    cos: f64,
+    sin: f64,
+}
+
+/// Relative widening of the cone's angle and test, against f64 rounding.
+const CONE_MARGIN: f64 = 1e-9;
+
+impl Cone {
+    /// None when the rays may reach behind the apex or spread over more than
+    /// a hemisphere, where a cone does not pay.
+    fn new(packet: &Packet, t_min: f64) -> Option<Cone> {
+        if t_min.is_nan() || t_min < 0.0 {
+            return None;
+        }
+        let dirs = packet
+            .rays
+            .each_ref()
+            .map(|r| DVec3::from_array(r.d) / r.length);
+        let axis = dirs.iter().sum::<DVec3>().try_normalize()?;
+        let cos = dirs.iter().map(|d| axis.dot(*d)).fold(1.0, f64::min) - CONE_MARGIN;
+        (cos > 0.0).then(|| Cone {
+            apex: DVec3::from_array(packet.rays[0].o),
+            axis,
+            cos,
+            sin: (1.0 - cos * cos).sqrt(),
+        })
+    }
+
+    /// False only when no ray of the cone comes within `bound` of `center`.
+    #[inline(always)]
+    fn may_hit(&self, center: DVec3, bound: f64) -> bool {
+        let w = center - self.apex;
+        let (l2, r2) = (w.length_squared(), bound * bound);
+        if l2 <= r2 {
+            return true;
+        }
+        let along = self.cos * (l2 - r2).sqrt() - self.sin * bound;
+        self.axis.dot(w) >= along - CONE_MARGIN * l2.sqrt()
+    }
+}
+
+/// The last spheres tested, direct-mapped: a packet meets each candidate in
+/// several cells of a slab and of the slabs after it.
+struct PacketMailbox([u32; 64]);
+
+impl PacketMailbox {
+    #[inline(always)]
+    fn first_visit(&mut self, id: u32) -> bool {
+        let slot = &mut self.0[id as usize & 63];
+        let first = *slot != id;
+        *slot = id;
+        first
+    }
+}
+
+/// A rectangle of cells across the slab axis: `[lo, hi]` on the two other axes.
+#[derive(Clone, Copy)]
+struct Rect {
+    lo: [i64; 2],
+    hi: [i64; 2],
+}
+
+/// Most blocks a layer's rectangle may cover for them all to be fetched up
+/// front; a wider rectangle probes block by block.
+const LAYER_BLOCKS: usize = 16;
+
+impl Level {
+    /// The rectangle of cells that rays with slopes in `range` cross between
+    /// the planes `planes` of the slab axis. A ray's cross coordinate there is
+    /// `o_u + (P − o_k)·m` for plane coordinate P and slope m: bilinear, so its
+    /// extremes over the slab and the rays lie at the corners.
+    fn rect(&self, packet: &Packet, range: &SlopeRange, planes: (i64, i64)) -> Rect {
+        let k = packet.axis;
+        let o = packet.rays[0].o;
+        let along = |plane: i64| self.origin[k] + plane as f64 * self.cell - o[k];
+        let (p0, p1) = (along(planes.0), along(planes.1));
+        let mut rect = Rect {
+            lo: [0; 2],
+            hi: [0; 2],
+        };
+        for j in 0..2 {
+            let axis = (k + 1 + j) % 3;
+            let corners = [
+                p0 * range.lo[j],
+                p0 * range.hi[j],
+                p1 * range.lo[j],
+                p1 * range.hi[j],
+            ];
+            let lo = corners.into_iter().fold(f64::INFINITY, f64::min) + o[axis];
+            let hi = corners.into_iter().fold(f64::NEG_INFINITY, f64::max) + o[axis];
+            let cell = |p: f64| {
+                super::walk::floor_to_int((p - self.origin[axis]) / self.cell)
+                    .clamp(0, self.dims[axis] - 1)
+            };
+            rect.lo[j] = cell(lo);
+            rect.hi[j] = cell(hi);
+        }
+        rect
+    }
+
+    /// Walks the packet through this level, calling `visit` with the sphere
+    /// ids of every occupied cell a still-searching ray may cross.
+    fn walk_packet<R: Real>(
+        &self,
+        packet: &Packet,
+        lanes: &mut Lanes<R>,
+        t_max: R,
+        empty_space: EmptySpace,
+        mut visit: impl FnMut(&[u32], &mut Lanes<R>),
+    ) {
+        let (k, step) = (packet.axis, packet.step);
+        let slack: [f64; LANES] = packet.rays.each_ref().map(|r| self.slack / r.length);
+        let t_lo = lanes.t_min.to_f64();
+        // Each ray's part of [t_min, t_max] (widened by the slack) in the
+        // level's box, and the first and last slab any ray is in.
+        let mut span = [(0.0, f64::NEG_INFINITY); LANES];
+        let mut live = 0u32;
+        // First and last slab, counted along the direction of travel.
+        let (mut first, mut last) = (i64::MAX, i64::MIN);
+        for (i, ray) in packet.rays.iter().enumerate() {
+            let reach = lanes.best_t[i].min(t_max).to_f64() + slack[i];
+            let Some((a, b)) = self.clip(ray, t_lo - slack[i], reach) else {
+                continue;
+            };
+            span[i] = (a, b);
+            live |= 1 << i;
+            let top = self.dims[k] - 1;
+            let (sa, sb) = (
+                self.cell_at(ray, a, k, 0, top),
+                self.cell_at(ray, b, k, 0, top),
+            );
+            first = first.min(sa * step);
+            last = last.max(sb * step);
+        }
+        if live == 0 {
+            return;
+        }
+        // Slab s lies between planes s and s + 1; a ray entering it going
+        // down the axis crosses plane s + 1 first.
+        let planes = |s: i64| if step > 0 { (s, s + 1) } else { (s + 1, s) };
+        // Rays whose search (best t plus slack) ends before plane `entry`
+        // are done with this level.
+        let still_searching = |live: u32, lanes: &Lanes<R>, entry: i64| {
+            let mut out = live;
+            for (i, ray) in packet.rays.iter().enumerate() {
+                let reach = (lanes.best_t[i].min(t_max).to_f64() + slack[i]).min(span[i].1);
+                if self.plane_t(ray, k, entry) > reach {
+                    out &= !(1 << i);
+                }
+            }
+            out
+        };
+        let mut range = packet.slope_range(live);
+        let (first, last) = (first * step, last * step);
+        let mut s = first;
+        while s * step <= last * step {
+            // The rest of the layer of slabs one block thick that s is in.
+            let layer_end = if step > 0 {
+                (s | ((1 << BLOCK_SHIFT) - 1)).min(last)
+            } else {
+                (s >> BLOCK_SHIFT << BLOCK_SHIFT).max(last)
+            };
+            let layer = (planes(s).0, planes(layer_end).1);
+            let blocks = self.layer_blocks(k, s, self.rect(packet, &range, layer), empty_space);
+            if !matches!(blocks, LayerBlocks::Empty) {
+                while s * step <= layer_end * step {
+                    let rect = self.rect(packet, &range, planes(s));
+                    self.visit_slab(k, s, rect, &blocks, lanes, &mut visit);
+                    s += step;
+                    // The tests may have found nearer hits.
+                    let searching = still_searching(live, lanes, planes(s).0);
+                    if searching != live {
+                        if searching == 0 {
+                            return;
+                        }
+                        live = searching;
+                        range = packet.slope_range(live);
+                    }
+                }
+            }
+            s = layer_end + step;
+        }
+    }
+
+    /// The blocks of a layer's rectangle, fetched once for all its slabs.
+    fn layer_blocks(&self, k: usize, s: i64, rect: Rect, empty_space: EmptySpace) -> LayerBlocks {
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        let lo = rect.lo.map(|c| c >> BLOCK_SHIFT);
+        let hi = rect.hi.map(|c| c >> BLOCK_SHIFT);
+        let count = ((hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)) as usize;
+        if count > LAYER_BLOCKS || empty_space == EmptySpace::ProbeEveryCell {
+            return LayerBlocks::ProbeEach;
+        }
+        let mut blocks = [None; LAYER_BLOCKS];
+        let mut any = false;
+        for bu in lo[0]..=hi[0] {
+            for bv in lo[1]..=hi[1] {
+                let mut b = [0; 3];
+                b[k] = s >> BLOCK_SHIFT;
+                b[u] = bu;
+                b[v] = bv;
+                let block = self.table.get(block_key(b));
+                any |= block.is_some();
+                blocks[((bu - lo[0]) * (hi[1] - lo[1] + 1) + (bv - lo[1])) as usize] = block;
+            }
+        }
+        if any {
+            LayerBlocks::Fetched {
+                lo,
+                width: hi[1] - lo[1] + 1,
+                blocks,
+            }
+        } else {
+            LayerBlocks::Empty
+        }
+    }
+
+    /// Visits the occupied cells of slab `s` within `rect`.
+    fn visit_slab<R: Real>(
+        &self,
+        k: usize,
+        s: i64,
+        rect: Rect,
+        blocks: &LayerBlocks,
+        lanes: &mut Lanes<R>,
+        visit: &mut impl FnMut(&[u32], &mut Lanes<R>),
+    ) {
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        for cu in rect.lo[0]..=rect.hi[0] {
+            for cv in rect.lo[1]..=rect.hi[1] {
+                let mut c = [0; 3];
+                c[k] = s;
+                c[u] = cu;
+                c[v] = cv;
+                let block = match blocks {
+                    LayerBlocks::Fetched { lo, width, blocks } => {
+                        let (bu, bv) = (cu >> BLOCK_SHIFT, cv >> BLOCK_SHIFT);
+                        blocks[((bu - lo[0]) * width + (bv - lo[1])) as usize]
+                    }
+                    _ => self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT))),
+                };
+                if let Some(b) = block.filter(|b| b.holds(cell_bit(c))) {
+                    visit(self.candidates(b.cell_index(cell_bit(c))), lanes);
+                }
+            }
+        }
+    }
+}
+
+/// What a layer's rectangle holds. It lives on the stack for one layer, so
+/// the fetched blocks stay inline rather than behind an allocation.
+#[allow(clippy::large_enum_variant)]
+enum LayerBlocks {
+    /// Only empty blocks: the layer is crossed without a look inside.
+    Empty,
+    /// Its blocks, row-major over the block rectangle starting at `lo`.
+    Fetched {
+        lo: [i64; 2],
+        width: i64,
+        blocks: [Option<Block>; LAYER_BLOCKS],
+    },
+    /// Too many blocks to fetch up front (or every cell is to be probed).
+    ProbeEach,
+}
+
+impl<R: Real> VoxelHashGrid<R> {
+    /// [`SphereIndex::closest_hits`]: packets of [`LANES`] rays, and rays
+    /// one at a time where a packet cannot be formed.
+    pub(super) fn packet_closest_hits(
+        &self,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) {
+        for (dirs, out) in dirs.chunks(LANES).zip(out.chunks_mut(LANES)) {
+            // A short last packet repeats its last ray in the spare lanes.
+            let padded: [V3<R>; LANES] = std::array::from_fn(|i| dirs[i.min(dirs.len() - 1)]);
+            match Packet::new::<R>(origin, &padded) {
+                Some(packet) => {
+                    let lanes = self.trace_packet(&packet, origin, &padded, t_min, t_max);
+                    for (i, hit) in out.iter_mut().enumerate() {
+                        *hit = lanes.hit(i);
+                    }
+                }
+                None => {
+                    for (dir, hit) in dirs.iter().zip(out.iter_mut()) {
+                        *hit = self.closest_hit(&Ray::new(origin, *dir), t_min, t_max);
+                    }
+                }
+            }
+        }
+    }
+
+    fn trace_packet(
+        &self,
+        packet: &Packet,
+        origin: V3<R>,
+        dirs: &[V3<R>; LANES],
+        t_min: R,
+        t_max: R,
+    ) -> Lanes<R> {
+        let mut lanes = Lanes::new(origin, dirs, t_min, t_max);
+        let mut mailbox = PacketMailbox([u32::MAX; 64]);
+        let cone = Cone::new(packet, t_min.to_f64());
+        for level in &self.levels {
+            level.walk_packet(packet, &mut lanes, t_max, self.empty_space, |ids, lanes| {
+                for &i in ids {
+                    if !mailbox.first_visit(i) {
+                        continue;
+                    }
+                    let sphere = &self.spheres[i as usize];
+                    let center = sphere.frame.center.to_dvec3();
+                    if cone
+                        .as_ref()
+                        .is_none_or(|c| c.may_hit(center, sphere.bound.to_f64()))
+                    {
+                        lanes.test(&sphere.frame, sphere.id);
+                    }
+                }
+            });
+        }
+        lanes
+    }
+}
