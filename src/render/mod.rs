@@ -242,7 +242,7 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
     let totals: [AtomicU64; 4] = Default::default();
     let rows_done = AtomicU32::new(0);
     let timed_out = AtomicBool::new(false);
-    rgb.par_chunks_mut(width * 3 * TILE)
+    rgb.par_chunks_mut(width * 3 * BAND as usize)
         .enumerate()
         .for_each(|(band, out)| {
             // Checked before every tile, so that a costly scene stops soon
@@ -256,7 +256,7 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
                 expired
             };
             let mut counts = RayCounts::default();
-            let rows = (band * TILE) as u32..((band + 1) * TILE).min(height) as u32;
+            let rows = band as u32 * BAND..((band as u32 + 1) * BAND).min(height as u32);
             render_band(&tracer, &sampler, rows.clone(), out, &mut counts, &expired);
             for (total, n) in totals.iter().zip([
                 counts.eye,
@@ -289,13 +289,39 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
 
 /// Side of the square tiles of pixels whose eye rays are traced together:
 /// 4×4 pixels give [`crate::index::PACKET_LANES`] rays per sample.
-const TILE: usize = 4;
+pub const TILE: u32 = 4;
+/// Rows per band, the unit of parallel work, and side of the square blocks
+/// of tiles a band is traced in.
+pub const BAND: u32 = 32;
 
-/// Renders the rows `rows` (at most [`TILE`] of them) into `out`, tile by
-/// tile, until `expired` says to stop. A tile's eye rays go to the index together, sample by sample across
-/// its pixels (neighbouring rays, which a packet walks at once), and each
-/// pixel then combines its own samples in order, exactly as one pixel at a
-/// time would.
+/// The tiles of the band of rows `rows` (at most [`BAND`] of them) in the
+/// order they are traced, each as its pixels (column, row) row by row: tiles
+/// row by row within blocks of [`BAND`]×[`BAND`] pixels, blocks left to
+/// right. Consecutive packets then stay close on the image, so the cells and
+/// spheres one fetches are still in cache for the next, a tile row above or
+/// below included.
+pub fn tiles(width: u32, rows: std::ops::Range<u32>) -> impl Iterator<Item = Vec<(u32, u32)>> {
+    (0..width).step_by(BAND as usize).flat_map(move |x0| {
+        let rows = rows.clone();
+        rows.clone().step_by(TILE as usize).flat_map(move |y0| {
+            let y1 = (y0 + TILE).min(rows.end);
+            (x0..(x0 + BAND).min(width))
+                .step_by(TILE as usize)
+                .map(move |t0| {
+                    let t1 = (t0 + TILE).min(width);
+                    (y0..y1)
+                        .flat_map(|y| (t0..t1).map(move |x| (x, y)))
+                        .collect()
+                })
+        })
+    })
+}
+
+/// Renders the band of rows `rows` into `out`, tile by tile (see
+/// [`tiles`]), until `expired` says to stop. A tile's eye rays go to the
+/// index together, sample by sample across its pixels (neighbouring rays,
+/// which a packet walks at once), and each pixel then combines its own
+/// samples in order, exactly as one pixel at a time would.
 fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
     sampler: &PixelSampler,
@@ -307,14 +333,10 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     let width = (out.len() / 3 / rows.len()) as u32;
     let spp = sampler.spp() as usize;
     let (mut samples, mut dirs, mut hits) = (Vec::new(), Vec::new(), Vec::new());
-    for x0 in (0..width).step_by(TILE) {
+    for pixels in tiles(width, rows.clone()) {
         if expired() {
             return;
         }
-        let pixels: Vec<(u32, u32)> = rows
-            .clone()
-            .flat_map(|y| (x0..(x0 + TILE as u32).min(width)).map(move |x| (x, y)))
-            .collect();
         let n = pixels.len();
         // Sample-major: dirs[s·n + p] is sample s of pixel p.
         dirs.clear();
@@ -346,4 +368,27 @@ fn to_bytes(color: glam::DVec3) -> [u8; 3] {
     color
         .to_array()
         .map(|c| (255.0 * c.clamp(0.0, 1.0)).floor() as u8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_every_pixel_of_a_band_once() {
+        for (width, rows) in [(1024, 0..32), (37, 64..91), (3, 5..6), (64, 0..32)] {
+            let mut seen = vec![0u32; (width * rows.len() as u32) as usize];
+            for tile in tiles(width, rows.clone()) {
+                assert!(!tile.is_empty() && tile.len() <= (TILE * TILE) as usize);
+                // A tile is a rectangle of at most TILE × TILE pixels, row by row.
+                let (x0, y0) = tile[0];
+                for &(x, y) in &tile {
+                    assert!(x >= x0 && x < x0 + TILE && y >= y0 && y < y0 + TILE);
+                    seen[((y - rows.start) * width + x) as usize] += 1;
+                }
+                assert!(tile.windows(2).all(|p| (p[0].1, p[0].0) < (p[1].1, p[1].0)));
+            }
+            assert!(seen.iter().all(|&n| n == 1), "{width} {rows:?}");
+        }
+    }
 }

@@ -12,7 +12,7 @@
 use super::gen::{generate, Distribution, GenOptions, Rng};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Vec3Ops, V3};
 use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_LANES};
-use crate::render::PixelSampler;
+use crate::render::{self, PixelSampler};
 use crate::scene::{self, Scene, SceneError};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -175,19 +175,17 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
     })
 }
 
-/// One eye ray per pixel, in 4×4 tiles (tile rows from the top, pixels
-/// row-major within a tile), so that each run of [`PACKET_LANES`] rays is a tile.
+/// One eye ray per pixel, in the renderer's tile order ([`render::tiles`]),
+/// so that each run of [`PACKET_LANES`] rays is a tile (when the sides are
+/// multiples of [`render::TILE`]).
 fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
     let sampler = PixelSampler::new(&scene.camera, 1);
     let (w, h) = (scene.camera.width, scene.camera.height);
-    let tiles_across = w.div_ceil(TILE);
-    let tiles = tiles_across * h.div_ceil(TILE);
-    (0..tiles)
+    (0..h.div_ceil(render::BAND))
         .into_par_iter()
-        .flat_map_iter(|tile| {
-            let (x0, y0) = (tile % tiles_across * TILE, tile / tiles_across * TILE);
-            (y0..(y0 + TILE).min(h))
-                .flat_map(move |y| (x0..(x0 + TILE).min(w)).map(move |x| (x, y)))
+        .flat_map_iter(|band| {
+            let rows = band * render::BAND..((band + 1) * render::BAND).min(h);
+            render::tiles(w, rows).flatten()
         })
         .map(|(x, y)| {
             let dir = sampler.direction(f64::from(x), f64::from(y));
@@ -195,9 +193,6 @@ fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
         })
         .collect()
 }
-
-/// Side of the square tiles eye rays are grouped in.
-const TILE: u32 = 4;
 
 /// Primary rays in packets: each run of [`PACKET_LANES`] rays traced together.
 fn primary_packets(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<Hit<f32>>> {

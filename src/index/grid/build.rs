@@ -7,7 +7,8 @@
 //! Each band that holds at least one sphere gets a cell side: the smallest
 //! power of two at least the band's largest diameter, doubled while the
 //! band's sphere centres still number at most [`MAX_CENTRES_PER_CELL`] per
-//! occupied cell (estimated by linear counting). Bands whose sides come out
+//! occupied cell (estimated by linear counting; the doublings are bisected,
+//! as that mean only grows with them). Bands whose sides come out
 //! equal share one level. So:
 //! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
 //! - in a dense band a cell is at most 2× the largest and 8× the smallest
@@ -37,13 +38,14 @@
 //! the operation count gives; the property tests check the bound.
 
 use super::table::{
-    block_key, cell_bit, Block, BlockKey, BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS,
+    block_key, cell_bit, Block, BlockKey, BlockTable, BLOCK_SHIFT, BLOCK_SIDE, MAX_BLOCKS_PER_AXIS,
 };
+use super::walk::floor_to_int;
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
 use glam::DVec3;
 use rayon::prelude::*;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// The ratio of the largest to the smallest reach a level holds.
 pub const BAND: f64 = 4.0;
@@ -86,7 +88,7 @@ impl Extent {
 }
 
 /// How many times a sparse level's cells may double beyond the sphere size.
-const MAX_COARSENING: usize = 16;
+const MAX_COARSENING: i32 = 16;
 /// A level's cells double while the mean number of sphere centres per
 /// occupied cell stays at most this.
 const MAX_CENTRES_PER_CELL: f64 = 2.0;
@@ -111,10 +113,12 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
         .map(|chunk| {
             let mut bits = vec![0u64; WORDS];
             for &id in chunk {
-                let c = (extents[id as usize].center / cell).floor().as_i64vec3();
-                let key = (c.x as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
-                    ^ (c.y as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
-                    ^ (c.z as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
+                let c = (extents[id as usize].center / cell)
+                    .to_array()
+                    .map(floor_to_int);
+                let key = (c[0] as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                    ^ (c[1] as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+                    ^ (c[2] as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
                 let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 42;
                 bits[h as usize / 64] |= 1 << (h % 64);
             }
@@ -165,14 +169,27 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
         };
     }
     let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
-    let mut bands: BTreeMap<i32, Vec<u32>> = BTreeMap::new();
-    for (id, e) in extents.iter().enumerate() {
-        bands.entry(e.band()).or_default().push(id as u32);
-    }
+    let band: Vec<i32> = extents.par_iter().map(Extent::band).collect();
+    let present = band
+        .par_iter()
+        .fold(BTreeSet::new, |mut set, &b| {
+            set.insert(b);
+            set
+        })
+        .reduce(BTreeSet::new, |mut a, b| {
+            a.extend(b);
+            a
+        });
+    let bands = present.into_iter().map(|b| {
+        (0..shapes.len() as u32)
+            .into_par_iter()
+            .filter(|&id| band[id as usize] == b)
+            .collect::<Vec<u32>>()
+    });
     // Bands whose chosen cells come out equal share one level: walking two
     // identical lattices would cost twice for nothing.
     let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
-    for ids in bands.into_values() {
+    for ids in bands {
         let cell = choose_cell(&extents, &ids);
         by_cell.entry(cell.to_bits()).or_default().extend(ids);
     }
@@ -201,17 +218,26 @@ fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
         .par_iter()
         .map(|&id| extents[id as usize].reach)
         .reduce(|| 0.0, f64::max);
-    let mut cell = (2.0 * reach).log2().ceil().exp2();
+    let finest = (2.0 * reach).log2().ceil().exp2();
     // Sparse bands: coarser cells while a cell still holds few centres, so
-    // that rays cross fewer empty cells on their way to a sphere.
-    for _ in 0..MAX_COARSENING {
-        let coarser = 2.0 * cell;
-        if centres_per_occupied_cell(extents, ids, coarser) > MAX_CENTRES_PER_CELL {
-            break;
+    // that rays cross fewer empty cells on their way to a sphere. Doubling
+    // the cells merges them eight to one, so the centres per occupied cell
+    // only grow with the doublings: bisect for the most that stay sparse
+    // (a few passes over the band instead of one per doubling).
+    let sparse = |doublings: i32| {
+        let cell = finest * f64::from(doublings).exp2();
+        centres_per_occupied_cell(extents, ids, cell) <= MAX_CENTRES_PER_CELL
+    };
+    let (mut good, mut bad) = (0, MAX_COARSENING + 1);
+    while bad - good > 1 {
+        let mid = (good + bad) / 2;
+        if sparse(mid) {
+            good = mid;
+        } else {
+            bad = mid;
         }
-        cell = coarser;
     }
-    cell
+    finest * f64::from(good).exp2()
 }
 
 /// Builds one level over `ids`, appending them to `order` as described in
@@ -240,23 +266,22 @@ fn build_level(
     let lo = (lo / cell).floor() * cell;
     let dims = ((hi - lo) / cell).floor().as_i64vec3() + 1;
     let cell_of = |p: f64, axis: usize| -> i64 {
-        (((p - lo[axis]) / cell).floor() as i64).clamp(0, dims[axis] - 1)
+        floor_to_int((p - lo[axis]) / cell).clamp(0, dims[axis] - 1)
     };
-    let mut pairs: Vec<(u64, u32)> = ids
-        .par_iter()
-        .flat_map_iter(|&id| {
-            let e = &extents[id as usize];
-            let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
-            let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
-            (a[0]..=b[0]).flat_map(move |x| {
-                (a[1]..=b[1])
-                    .flat_map(move |y| (a[2]..=b[2]).map(move |z| (sort_key([x, y, z]), id)))
-            })
+    let code = PairCode::new(dims.to_array(), ids.len());
+    let cells = |id: u32| {
+        let e = &extents[id as usize];
+        let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
+        let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
+        (a[0]..=b[0]).flat_map(move |x| {
+            (a[1]..=b[1]).flat_map(move |y| (a[2]..=b[2]).map(move |z| [x, y, z]))
         })
-        .collect();
-    pairs.par_sort_unstable();
-    number_in_cell_order(&pairs, rank, order);
-    let (blocks, cell_start, candidates) = compress(&pairs, rank);
+    };
+    let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
+        sorted_cells::<u64, _>(&code, ids, cells, rank, order)
+    } else {
+        sorted_cells::<u128, _>(&code, ids, cells, rank, order)
+    };
     Level {
         cell,
         origin: lo,
@@ -268,10 +293,100 @@ fn build_level(
     }
 }
 
-/// Orders pairs by block, then by cell bit within the block, which is the
-/// order the rank in a block's mask counts cells in.
-fn sort_key(c: [i64; 3]) -> u64 {
-    block_key(c.map(|v| v >> BLOCK_SHIFT)) << 6 | u64::from(cell_bit(c))
+/// (cell, sphere) pairs packed into integers that sort by block, then by
+/// cell within the block (the order a block's mask ranks its cells in), then
+/// by sphere id: the block's index in the level's box, the cell's bit, and
+/// the sphere's position in the level's ascending id list. One integer
+/// (a u64 whenever the three fit) sorts far faster than a tuple.
+struct PairCode {
+    /// Blocks per axis.
+    blocks: [u64; 3],
+    id_bits: u32,
+}
+
+/// The integers [`PairCode`] packs into.
+trait PairKey: Copy + Ord + Send + Sync {
+    fn narrow(wide: u128) -> Self;
+    fn wide(self) -> u128;
+}
+
+impl PairKey for u64 {
+    fn narrow(wide: u128) -> Self {
+        wide as u64
+    }
+    fn wide(self) -> u128 {
+        u128::from(self)
+    }
+}
+
+impl PairKey for u128 {
+    fn narrow(wide: u128) -> Self {
+        wide
+    }
+    fn wide(self) -> u128 {
+        self
+    }
+}
+
+impl PairCode {
+    fn new(dims: [i64; 3], spheres: usize) -> Self {
+        PairCode {
+            blocks: dims.map(|d| ((d + BLOCK_SIDE - 1) >> BLOCK_SHIFT) as u64),
+            id_bits: usize::BITS - spheres.leading_zeros(),
+        }
+    }
+
+    /// Bits a packed pair needs.
+    fn bits(&self) -> u32 {
+        let blocks = self.blocks.iter().product::<u64>();
+        u64::BITS - blocks.leading_zeros() + 3 * BLOCK_SHIFT + self.id_bits
+    }
+
+    fn pack<K: PairKey>(&self, c: [i64; 3], local: usize) -> K {
+        let b = c.map(|v| (v >> BLOCK_SHIFT) as u64);
+        let block = (b[2] * self.blocks[1] + b[1]) * self.blocks[0] + b[0];
+        let cell = u128::from(block) << (3 * BLOCK_SHIFT) | u128::from(cell_bit(c));
+        K::narrow(cell << self.id_bits | local as u128)
+    }
+
+    /// The packed cell (block index and cell bit) and the sphere's position.
+    fn unpack<K: PairKey>(&self, key: K) -> (u64, usize) {
+        let key = key.wide();
+        (
+            (key >> self.id_bits) as u64,
+            (key & ((1 << self.id_bits) - 1)) as usize,
+        )
+    }
+
+    /// The table key of the block with index `block`.
+    fn block_key(&self, block: u64) -> BlockKey {
+        let [nx, ny, _] = self.blocks;
+        block_key([block % nx, block / nx % ny, block / (nx * ny)].map(|b| b as i64))
+    }
+}
+
+/// Packs and sorts the (cell, sphere) pairs of the level's spheres `ids`
+/// (`cells(id)` lists a sphere's cells), numbers the spheres in cell order,
+/// and compresses the pairs into blocks and CSR lists.
+fn sorted_cells<K: PairKey, C: Iterator<Item = [i64; 3]>>(
+    code: &PairCode,
+    ids: &[u32],
+    cells: impl Fn(u32) -> C + Sync + Send,
+    rank: &mut [u32],
+    order: &mut Vec<u32>,
+) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
+    let mut keys: Vec<K> = ids
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(local, &id)| cells(id).map(move |c| code.pack::<K>(c, local)))
+        .collect();
+    keys.par_sort_unstable();
+    let pairs = |i: usize| {
+        let (cell, local) = code.unpack(keys[i]);
+        (cell, ids[local])
+    };
+    number_in_cell_order((0..keys.len()).map(|i| pairs(i).1), rank, order);
+    compress(code, keys.len(), pairs, rank)
 }
 
 /// Numbers the spheres of sorted (cell, id) pairs in the order they first
@@ -280,8 +395,8 @@ fn sort_key(c: [i64; 3]) -> u64 {
 /// so a cell's own spheres get consecutive numbers and neighbouring cells
 /// nearby ones: the grid's copies of the spheres a ray tests in one cell,
 /// and in the next, share cache lines instead of lying anywhere in the array.
-fn number_in_cell_order(pairs: &[(u64, u32)], rank: &mut [u32], order: &mut Vec<u32>) {
-    for &(_, id) in pairs {
+fn number_in_cell_order(ids: impl Iterator<Item = u32>, rank: &mut [u32], order: &mut Vec<u32>) {
+    for id in ids {
         let r = &mut rank[id as usize];
         if *r == u32::MAX {
             *r = order.len() as u32;
@@ -290,23 +405,34 @@ fn number_in_cell_order(pairs: &[(u64, u32)], rank: &mut [u32], order: &mut Vec<
     }
 }
 
-/// From sorted (cell, id) pairs to the blocks, the CSR offsets of the
-/// occupied cells, and the flat array of the spheres' numbers (`rank`).
-fn compress(pairs: &[(u64, u32)], rank: &[u32]) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    let ids: Vec<u32> = pairs.par_iter().map(|&(_, id)| rank[id as usize]).collect();
+/// From the `len` sorted (packed cell, id) pairs `pair(i)` to the blocks,
+/// the CSR offsets of the occupied cells, and the flat array of the
+/// spheres' numbers (`rank`).
+fn compress(
+    code: &PairCode,
+    len: usize,
+    pair: impl Fn(usize) -> (u64, u32) + Sync,
+    rank: &[u32],
+) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
+    let ids: Vec<u32> = (0..len)
+        .into_par_iter()
+        .map(|i| rank[pair(i).1 as usize])
+        .collect();
     let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
     let mut cell_start: Vec<u32> = Vec::new();
-    let mut previous = u64::MAX;
-    for (i, &(key, _)) in pairs.iter().enumerate() {
-        if key == previous {
+    let (mut previous, mut previous_block) = (u64::MAX, u64::MAX);
+    for i in 0..len {
+        let (cell, _) = pair(i);
+        if cell == previous {
             continue;
         }
-        previous = key;
-        let (block, bit) = (key >> 6, key & 63);
-        if blocks.last().is_none_or(|&(b, _)| b != block) {
+        previous = cell;
+        let (block, bit) = (cell >> (3 * BLOCK_SHIFT), cell & 63);
+        if block != previous_block {
+            previous_block = block;
             let first_cell = cell_start.len() as u32;
             blocks.push((
-                block,
+                code.block_key(block),
                 Block {
                     occupied: 0,
                     first_cell,
@@ -318,6 +444,6 @@ fn compress(pairs: &[(u64, u32)], rank: &[u32]) -> (Vec<(BlockKey, Block)>, Vec<
         }
         cell_start.push(i as u32);
     }
-    cell_start.push(pairs.len() as u32);
+    cell_start.push(len as u32);
     (blocks, cell_start, ids)
 }

@@ -47,6 +47,8 @@ struct Lanes<R: Real> {
     /// t with a lower id still wins, as in brute force): `best_t.next_up()`.
     cap: [R; LANES],
     t_min: R,
+    /// Set when a lane's best hit moved nearer.
+    improved: bool,
 }
 
 impl<R: Real> Lanes<R> {
@@ -62,6 +64,7 @@ impl<R: Real> Lanes<R> {
             best_id: [u32::MAX; LANES],
             cap: [t_max; LANES],
             t_min,
+            improved: false,
         }
     }
 
@@ -114,6 +117,7 @@ impl<R: Real> Lanes<R> {
                 self.best_t[i] = t;
                 self.best_id[i] = id;
                 self.cap[i] = t.next_up();
+                self.improved = true;
             }
         }
     }
@@ -171,6 +175,11 @@ impl Packet {
             axis,
             slope,
         })
+    }
+
+    /// The two axes across the slabs.
+    fn cross(&self) -> [usize; 2] {
+        [(self.axis + 1) % 3, (self.axis + 2) % 3]
     }
 
     /// The least and greatest slope of the rays in `live`, per cross axis.
@@ -282,42 +291,125 @@ struct Rect {
 /// front; a wider rectangle probes block by block.
 const LAYER_BLOCKS: usize = 16;
 
-impl Level {
-    /// The rectangle of cells that rays with slopes in `range` cross between
-    /// the planes `planes` of the slab axis. A ray's cross coordinate there is
-    /// `o_u + (P − o_k)·m` for plane coordinate P and slope m: bilinear, so its
-    /// extremes over the slab and the rays lie at the corners.
-    fn rect(&self, packet: &Packet, range: &SlopeRange, planes: (i64, i64)) -> Rect {
+impl Rect {
+    /// The cells between two planes, from the cells each plane meets.
+    fn between(a: &Rect, b: &Rect) -> Rect {
+        Rect {
+            lo: [a.lo[0].min(b.lo[0]), a.lo[1].min(b.lo[1])],
+            hi: [a.hi[0].max(b.hi[0]), a.hi[1].max(b.hi[1])],
+        }
+    }
+}
+
+/// Relative widening of the rule that retires a ray, against the rounding
+/// of its two sides (a few units in the last place of f64).
+const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// How far along the slab axis each ray of a packet still searches this
+/// level, and the nearest of those among the live rays: a ray whose best
+/// t (plus the slack) lies before a slab's entry plane needs nothing beyond.
+///
+/// Ray i is at t = travel / |d_k| on the plane `travel` along the axis from
+/// the origin, so it searches the slab entered there while
+/// `travel ≤ reach_i·|d_k|`; the limit is widened by [`RETIRE_MARGIN`], as
+/// retiring a ray late only costs work and retiring it early would lose hits.
+struct Search {
+    live: u32,
+    limit: [f64; LANES],
+    nearest: f64,
+}
+
+impl Search {
+    fn update<R: Real>(
+        &mut self,
+        packet: &Packet,
+        lanes: &Lanes<R>,
+        reach: impl Fn(usize, R) -> f64,
+    ) {
         let k = packet.axis;
-        let o = packet.rays[0].o;
-        let along = |plane: i64| self.origin[k] + plane as f64 * self.cell - o[k];
-        let (p0, p1) = (along(planes.0), along(planes.1));
+        self.nearest = f64::INFINITY;
+        for (i, ray) in packet.rays.iter().enumerate() {
+            if self.live >> i & 1 != 0 {
+                let limit = reach(i, lanes.best_t[i]) * ray.d[k].abs();
+                let limit = limit + limit.abs() * RETIRE_MARGIN;
+                self.limit[i] = limit;
+                self.nearest = self.nearest.min(limit);
+            }
+        }
+    }
+
+    /// Retires the rays done before `travel`; true when the live set changed.
+    fn retire(&mut self, travel: f64) -> bool {
+        if travel <= self.nearest {
+            return false;
+        }
+        self.nearest = f64::INFINITY;
+        for (i, &limit) in self.limit.iter().enumerate() {
+            if travel > limit {
+                self.live &= !(1 << i);
+            } else if self.live >> i & 1 != 0 {
+                self.nearest = self.nearest.min(limit);
+            }
+        }
+        true
+    }
+}
+
+/// The cells, on the two cross axes, that rays with slopes in a
+/// [`SlopeRange`] meet on a plane across the slab axis, in one level.
+struct PlaneCells {
+    /// The origin's cross coordinates relative to the level's lattice, in cells.
+    start: [f64; 2],
+    inv_cell: f64,
+    top: [i64; 2],
+}
+
+impl PlaneCells {
+    fn new(level: &Level, packet: &Packet) -> Self {
+        let cross = packet.cross();
+        // Cells are powers of two, so scaling by the reciprocal is exact
+        // and rounds exactly as dividing by the side would.
+        let inv_cell = 1.0 / level.cell;
+        PlaneCells {
+            start: cross.map(|a| (packet.rays[0].o[a] - level.origin[a]) * inv_cell),
+            inv_cell,
+            top: cross.map(|a| level.dims[a] - 1),
+        }
+    }
+
+    /// The cells met on the plane `delta` from the origin along the slab
+    /// axis: a ray's cross coordinate there is `o_u + delta·m` for its slope m.
+    #[inline(always)]
+    fn at(&self, range: &SlopeRange, delta: f64) -> Rect {
         let mut rect = Rect {
             lo: [0; 2],
             hi: [0; 2],
         };
         for j in 0..2 {
-            let axis = (k + 1 + j) % 3;
-            let corners = [
-                p0 * range.lo[j],
-                p0 * range.hi[j],
-                p1 * range.lo[j],
-                p1 * range.hi[j],
-            ];
-            let lo = corners.into_iter().fold(f64::INFINITY, f64::min) + o[axis];
-            let hi = corners.into_iter().fold(f64::NEG_INFINITY, f64::max) + o[axis];
+            let (lo, hi) = if delta >= 0.0 {
+                (delta * range.lo[j], delta * range.hi[j])
+            } else {
+                (delta * range.hi[j], delta * range.lo[j])
+            };
             let cell = |p: f64| {
-                super::walk::floor_to_int((p - self.origin[axis]) / self.cell)
-                    .clamp(0, self.dims[axis] - 1)
+                super::walk::floor_to_int(self.start[j] + p * self.inv_cell).clamp(0, self.top[j])
             };
             rect.lo[j] = cell(lo);
             rect.hi[j] = cell(hi);
         }
         rect
     }
+}
 
+impl Level {
     /// Walks the packet through this level, calling `visit` with the sphere
     /// ids of every occupied cell a still-searching ray may cross.
+    ///
+    /// A slab's rectangle joins the cells its two planes meet: the cross
+    /// coordinate `o_u + delta·m` is bilinear in the plane and the slope, so
+    /// over a slab and a set of rays its extremes lie on the planes, at the
+    /// extreme slopes. Rounding is monotone, so the rectangle of a slab
+    /// computed so lies inside that of the layer it belongs to.
     fn walk_packet<R: Real>(
         &self,
         packet: &Packet,
@@ -329,18 +421,17 @@ impl Level {
         let (k, step) = (packet.axis, packet.step);
         let slack: [f64; LANES] = packet.rays.each_ref().map(|r| self.slack / r.length);
         let t_lo = lanes.t_min.to_f64();
-        // Each ray's part of [t_min, t_max] (widened by the slack) in the
-        // level's box, and the first and last slab any ray is in.
-        let mut span = [(0.0, f64::NEG_INFINITY); LANES];
+        // Each ray's exit from the level's box (widened by the slack), and
+        // the first and last slab any ray is in, counted along the travel.
+        let mut exit = [f64::NEG_INFINITY; LANES];
         let mut live = 0u32;
-        // First and last slab, counted along the direction of travel.
         let (mut first, mut last) = (i64::MAX, i64::MIN);
         for (i, ray) in packet.rays.iter().enumerate() {
             let reach = lanes.best_t[i].min(t_max).to_f64() + slack[i];
             let Some((a, b)) = self.clip(ray, t_lo - slack[i], reach) else {
                 continue;
             };
-            span[i] = (a, b);
+            exit[i] = b;
             live |= 1 << i;
             let top = self.dims[k] - 1;
             let (sa, sb) = (
@@ -353,22 +444,21 @@ impl Level {
         if live == 0 {
             return;
         }
+        let reach = |i: usize, best: R| (best.min(t_max).to_f64() + slack[i]).min(exit[i]);
+        let mut search = Search {
+            live,
+            limit: [f64::INFINITY; LANES],
+            nearest: f64::INFINITY,
+        };
+        search.update(packet, lanes, reach);
+        lanes.improved = false;
         // Slab s lies between planes s and s + 1; a ray entering it going
         // down the axis crosses plane s + 1 first.
-        let planes = |s: i64| if step > 0 { (s, s + 1) } else { (s + 1, s) };
-        // Rays whose search (best t plus slack) ends before plane `entry`
-        // are done with this level.
-        let still_searching = |live: u32, lanes: &Lanes<R>, entry: i64| {
-            let mut out = live;
-            for (i, ray) in packet.rays.iter().enumerate() {
-                let reach = (lanes.best_t[i].min(t_max).to_f64() + slack[i]).min(span[i].1);
-                if self.plane_t(ray, k, entry) > reach {
-                    out &= !(1 << i);
-                }
-            }
-            out
-        };
-        let mut range = packet.slope_range(live);
+        let entry_plane = |s: i64| if step > 0 { s } else { s + 1 };
+        let delta = |plane: i64| self.origin[k] + plane as f64 * self.cell - packet.rays[0].o[k];
+        let travel = |s: i64| delta(entry_plane(s)) * step as f64;
+        let mut range = packet.slope_range(search.live);
+        let cells = PlaneCells::new(self, packet);
         let (first, last) = (first * step, last * step);
         let mut s = first;
         while s * step <= last * step {
@@ -378,25 +468,47 @@ impl Level {
             } else {
                 (s >> BLOCK_SHIFT << BLOCK_SHIFT).max(last)
             };
-            let layer = (planes(s).0, planes(layer_end).1);
-            let blocks = self.layer_blocks(k, s, self.rect(packet, &range, layer), empty_space);
+            let layer = Rect::between(
+                &cells.at(&range, delta(entry_plane(s))),
+                &cells.at(&range, delta(entry_plane(layer_end + step))),
+            );
+            let blocks = self.layer_blocks(k, s, layer, empty_space);
             if !matches!(blocks, LayerBlocks::Empty) {
+                let mut entry = cells.at(&range, delta(entry_plane(s)));
                 while s * step <= layer_end * step {
-                    let rect = self.rect(packet, &range, planes(s));
-                    self.visit_slab(k, s, rect, &blocks, lanes, &mut visit);
+                    let leaving = cells.at(&range, delta(entry_plane(s + step)));
+                    self.visit_slab(
+                        k,
+                        s,
+                        Rect::between(&entry, &leaving),
+                        &blocks,
+                        lanes,
+                        &mut visit,
+                    );
                     s += step;
+                    entry = leaving;
                     // The tests may have found nearer hits.
-                    let searching = still_searching(live, lanes, planes(s).0);
-                    if searching != live {
-                        if searching == 0 {
+                    if lanes.improved {
+                        lanes.improved = false;
+                        search.update(packet, lanes, reach);
+                    }
+                    if search.retire(travel(s)) {
+                        if search.live == 0 {
                             return;
                         }
-                        live = searching;
-                        range = packet.slope_range(live);
+                        range = packet.slope_range(search.live);
+                        entry = cells.at(&range, delta(entry_plane(s)));
                     }
                 }
+            } else {
+                s = layer_end + step;
+                if search.retire(travel(s)) {
+                    if search.live == 0 {
+                        return;
+                    }
+                    range = packet.slope_range(search.live);
+                }
             }
-            s = layer_end + step;
         }
     }
 
