@@ -110,7 +110,7 @@ overload() {
     rate=$(echo "4 * $sat" | bc -l)
     echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 30 s, testSample 256×256"
     echo
-    start_server --workers 512
+    start_server
     sleep 0.3
     rss0=$(proc VmRSS)
     "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 30s --rate "$rate" --json > "$WORK/overload.json" &
@@ -131,16 +131,26 @@ overload() {
 }
 
 slowloris() {
-    echo "### Slow clients: 500 connections trickling their heads for 20 s, one normal client at 2 renders/s"
+    echo "### Slow clients: 500 connections (250 trickling their heads, 250 idle) for 30 s; a normal client at 5 renders/s, testSample 256×256"
     echo
     start_server
-    python3 bench/slowloris.py 127.0.0.1 "${ADDR##*:}" 500 20 2 > "$WORK/slow.txt" &
+    normal() {
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 4 -d 20s --rate 5 --json
+    }
+    summary='"status %s, errors %s, latency ms p50 %.1f p90 %.1f p99 %.1f max %.1f" % (d["status"], d["errors"], d["latency_ms"]["p50"], d["latency_ms"]["p90"], d["latency_ms"]["p99"], d["latency_ms"]["max"])'
+    normal > "$WORK/unloaded.json"
+    python3 bench/slowloris.py 127.0.0.1 "${ADDR##*:}" 500 30 2 > "$WORK/slow.txt" &
     SLOW=$!
     sleep 3
-    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 4 -d 12s --rate 2 --json > "$WORK/normal.json"
+    echo "    server threads with the slow connections open: $(proc Threads), open connections: $(metric voxtrace_open_connections)"
+    normal > "$WORK/normal.json"
     wait "$SLOW"
+    sleep 0.5
     sed 's/^/    /' "$WORK/slow.txt"
-    field '"    normal client: status %s, errors %s, latency ms %s" % (d["status"], d["errors"], d["latency_ms"])' < "$WORK/normal.json"
+    echo "    normal client alone:                 $(field "$summary" < "$WORK/unloaded.json")"
+    echo "    normal client beside the slow ones:  $(field "$summary" < "$WORK/normal.json")"
+    echo "    p50 ratio $(field 'd["latency_ms"]["p50"]' < "$WORK/normal.json") / $(field 'd["latency_ms"]["p50"]' < "$WORK/unloaded.json"), p99 ratio $(field 'd["latency_ms"]["p99"]' < "$WORK/normal.json") / $(field 'd["latency_ms"]["p99"]' < "$WORK/unloaded.json")"
+    echo "    408s answered by the server: $(curl -s "http://$ADDR/metrics" | awk '/route="other",status="408"/ {print $2}'); afterwards open connections (counting the /metrics request): $(metric voxtrace_open_connections), threads: $(proc Threads)"
     stop_server
     echo
 }

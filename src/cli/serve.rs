@@ -11,12 +11,9 @@ pub struct ServeArgs {
     /// Address to listen on; port 0 picks a free port.
     #[arg(long, default_value = limits::DEFAULT_ADDR)]
     addr: String,
-    /// Connection handler threads (clients served at once).
-    #[arg(long, default_value_t = limits::DEFAULT_WORKERS)]
-    workers: usize,
-    /// Accepted connections that may wait for a handler before new ones get 503.
-    #[arg(long, default_value_t = limits::DEFAULT_BACKLOG)]
-    backlog: usize,
+    /// Open connections, each with its own reader thread; past this a new one gets 503.
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_CONNECTIONS)]
+    max_connections: usize,
     /// Renders running at once.
     #[arg(long, default_value_t = limits::DEFAULT_CONCURRENT_RENDERS)]
     renders: usize,
@@ -60,8 +57,7 @@ impl ServeArgs {
         let ms = Duration::from_millis;
         ServiceConfig {
             addr: self.addr.clone(),
-            workers: self.workers,
-            backlog: self.backlog,
+            max_connections: self.max_connections,
             concurrent_renders: self.renders,
             queue: self.queue,
             max_body: self.max_body,
