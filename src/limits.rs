@@ -34,8 +34,12 @@ pub const DEFAULT_MAX_CONNECTIONS: usize = 1_024;
 pub const DEFAULT_CONCURRENT_RENDERS: usize = 2;
 /// Renders waiting for a slot; past this `POST /render` is answered 503.
 pub const DEFAULT_QUEUE: usize = 64;
-/// Largest request body (scene text) in bytes.
-pub const DEFAULT_MAX_BODY: u64 = 8 * 1024 * 1024;
+/// Largest request body (scene text) in bytes: some 170,000 spheres as
+/// `voxtrace gen` writes them.
+pub const DEFAULT_MAX_BODY: u64 = 16 * 1024 * 1024;
+/// Request bodies held in memory at once, in bytes, charged as they arrive;
+/// a body that would go past it is answered 503.
+pub const DEFAULT_BODY_MEMORY: u64 = 256 * 1024 * 1024;
 /// Largest request head (request line and headers) in bytes; larger is 431.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 /// Most header lines in one request; more is 431.

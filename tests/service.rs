@@ -148,9 +148,11 @@ fn cli_render(scene: &str, extension: &str) -> Vec<u8> {
 
 /// A scene that costs as much as asked: one sphere filling the view, lit by
 /// 1000 lights, so every pixel sample casts 1000 shadow rays whatever the index.
+/// The image is narrow and tall: the render checks its deadline between rows,
+/// so short rows keep it close to its budget even on a busy machine.
 fn costly_scene() -> Vec<u8> {
     let mut text = String::from(
-        "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 256 256\nSPHERE big 0 0 -3 4 4 1 1 1 1 0.1 0.8 0.2 0 10\n",
+        "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 16 4096\nSPHERE big 0 0 -3 4 4 1 1 1 1 0.1 0.8 0.2 0 10\n",
     );
     for i in 0..1000 {
         text += &format!("LIGHT l{i} {} {} 0 0.001 0.001 0.001\n", i % 10, i / 100);
@@ -722,4 +724,30 @@ fn stopping_closes_waiting_connections_at_once() {
         started.elapsed()
     );
     assert!(idle.closed() && halfway.closed());
+}
+
+#[test]
+fn bodies_past_the_memory_budget_get_503_and_the_connection_stays_usable() {
+    let server = start(ServiceConfig {
+        max_body: 1000,
+        body_memory: 1000,
+        ..ServiceConfig::default()
+    });
+    // Half a body, then silence: its 1000 bytes are charged.
+    let mut holder = Client::connect(server.addr());
+    holder.send(b"POST /render HTTP/1.1\r\nHost: t\r\nContent-Length: 1000\r\n\r\nNEAR 1\n");
+    wait_for_metric(server.addr(), "voxtrace_body_bytes", 1000);
+    let mut client = Client::connect(server.addr());
+    let scene = sample("testDiffuse.txt");
+    let reply = client.request("POST", "/render", &["Accept: application/json"], &scene);
+    assert_eq!(
+        (reply.status, reply.header("retry-after")),
+        (503, Some("1"))
+    );
+    assert_eq!(reply.json()["error"], "busy");
+    // The refused body was read to its end: the next request parses.
+    assert_eq!(client.request("GET", "/healthz", &[], b"").status, 200);
+    drop(holder);
+    wait_for_metric(server.addr(), "voxtrace_body_bytes", 0);
+    assert_eq!(client.request("POST", "/render", &[], &scene).status, 200);
 }

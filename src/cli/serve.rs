@@ -23,6 +23,9 @@ pub struct ServeArgs {
     /// Largest request body in bytes (larger: 413).
     #[arg(long, default_value_t = limits::DEFAULT_MAX_BODY)]
     max_body: u64,
+    /// Request bodies held in memory at once, in bytes (past it: 503).
+    #[arg(long, default_value_t = limits::DEFAULT_BODY_MEMORY)]
+    body_memory: u64,
     /// Largest image, width × height (larger: 422).
     #[arg(long, default_value_t = limits::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
@@ -61,6 +64,7 @@ impl ServeArgs {
             concurrent_renders: self.renders,
             queue: self.queue,
             max_body: self.max_body,
+            body_memory: self.body_memory,
             max_pixels: self.max_pixels,
             max_samples: self.max_samples,
             max_spheres: self.max_spheres,

@@ -56,6 +56,7 @@ fn refuse(state: &State, conn: &Connection, error: ReadError) {
             ),
         ),
         ReadError::Malformed(why) => ApiError::new(400, "bad_request", why),
+        ReadError::OverBudget => busy(),
     };
     state.metrics.request("other", error.status);
     let _ = error
@@ -140,8 +141,16 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
     if wants_continue && (&*conn.stream).write_all(http::CONTINUE).is_err() {
         return Step::Gone;
     }
-    let body = match conn.read_body(length as usize, state.config.body_timeout) {
-        Ok(body) => body,
+    // Only a scene is kept; any other body is read and thrown away.
+    let (length, timeout) = (length as usize, state.config.body_timeout);
+    let mut charge = state.bodies.charge();
+    let received = if routes::takes_scene(head) {
+        conn.read_body(length, timeout, &mut charge).map(Some)
+    } else {
+        conn.discard_body(length, timeout).map(|()| None)
+    };
+    let scene = match received {
+        Ok(scene) => scene.map(|text| (text, charge)),
         Err(ReadError::Stalled) => {
             return fail(
                 ApiError::new(
@@ -152,6 +161,7 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
                 false,
             )
         }
+        Err(ReadError::OverBudget) => return fail(busy(), true),
         Err(_) => return Step::Gone,
     };
     slot.request_received();
@@ -165,7 +175,7 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
             true,
         );
     }
-    match routes::dispatch(state, conn, head, &body) {
+    match routes::dispatch(state, conn, head, scene) {
         Ok(Some(response)) => Step::Reply {
             response,
             keep: true,
@@ -173,4 +183,8 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         Ok(None) => Step::Gone,
         Err(error) => fail(error, true),
     }
+}
+
+fn busy() -> ApiError {
+    ApiError::busy(crate::limits::RETRY_AFTER_S)
 }

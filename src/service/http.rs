@@ -2,6 +2,7 @@
 //! deadlines, and writing a response. Framing only; what a request means is
 //! decided in `routes`.
 
+use super::admission::Charge;
 use crate::limits;
 use std::fmt::Write as _;
 use std::io::{self, Read, Write};
@@ -9,8 +10,11 @@ use std::net::TcpStream;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Bytes asked of the socket per read of a head.
+/// Bytes asked of the socket per read of a head, or of a discarded body.
 const READ_CHUNK: usize = 4096;
+/// A body's buffer (and its charge against the body budget) grows by this
+/// much at a time, as its bytes arrive.
+const BODY_CHUNK: usize = 64 * 1024;
 /// The shortest socket read timeout (std refuses zero, which to the OS
 /// means none at all).
 const MIN_READ_TIMEOUT: Duration = Duration::from_millis(1);
@@ -41,6 +45,9 @@ pub enum ReadError {
     HeadTooLarge,
     /// Not HTTP/1.x (400).
     Malformed(String),
+    /// The body would have taken the bodies held in memory past their
+    /// budget; it was read and thrown away (503).
+    OverBudget,
     /// The connection failed (reset, or a socket error).
     Io,
 }
@@ -219,30 +226,76 @@ impl Connection {
         }
     }
 
-    /// Reads exactly `len` body bytes within `timeout` (of the whole body),
-    /// straight into the body's buffer.
-    pub fn read_body(&mut self, len: usize, timeout: Duration) -> Result<Vec<u8>, ReadError> {
+    /// Reads exactly `len` body bytes within `timeout` (of the whole
+    /// body). The buffer grows, and `charge` with it, only as bytes arrive;
+    /// if the budget cannot take them, the rest of the body is thrown away.
+    pub fn read_body(
+        &mut self,
+        len: usize,
+        timeout: Duration,
+        charge: &mut Charge,
+    ) -> Result<Vec<u8>, ReadError> {
         let deadline = Instant::now() + timeout;
-        let from_pending = len.min(self.pending.len());
-        let mut body = vec![0u8; len];
-        body[..from_pending].copy_from_slice(&self.pending[..from_pending]);
-        self.pending.drain(..from_pending);
-        let mut filled = from_pending;
+        let mut body = Vec::new();
+        let mut filled = 0;
         while filled < len {
+            if filled == body.len() {
+                let more = (len - filled).min(BODY_CHUNK);
+                if !charge.grow(more as u64) {
+                    drop(body);
+                    self.discard(len - filled, deadline)?;
+                    return Err(ReadError::OverBudget);
+                }
+                body.reserve_exact(more);
+                body.resize(filled + more, 0);
+            }
+            if !self.pending.is_empty() {
+                let n = self.pending.len().min(body.len() - filled);
+                body[filled..filled + n].copy_from_slice(&self.pending[..n]);
+                self.pending.drain(..n);
+                filled += n;
+                continue;
+            }
+            let end = body.len();
+            filled += self.read_before(deadline, &mut body[filled..end])?;
+        }
+        Ok(body)
+    }
+
+    /// Reads and throws away `len` body bytes within `timeout`: a body no
+    /// route needs is never held.
+    pub fn discard_body(&mut self, len: usize, timeout: Duration) -> Result<(), ReadError> {
+        self.discard(len, Instant::now() + timeout)
+    }
+
+    fn discard(&mut self, len: usize, deadline: Instant) -> Result<(), ReadError> {
+        let from_pending = len.min(self.pending.len());
+        self.pending.drain(..from_pending);
+        let mut left = len - from_pending;
+        let mut chunk = [0u8; READ_CHUNK];
+        while left > 0 {
+            let want = left.min(chunk.len());
+            left -= self.read_before(deadline, &mut chunk[..want])?;
+        }
+        Ok(())
+    }
+
+    /// One read of at most `buf.len()` bytes (at least one) before `deadline`.
+    fn read_before(&mut self, deadline: Instant, buf: &mut [u8]) -> Result<usize, ReadError> {
+        loop {
             let Some(left) = deadline.checked_duration_since(Instant::now()) else {
                 return Err(ReadError::Stalled);
             };
             self.stream
                 .set_read_timeout(Some(left.max(MIN_READ_TIMEOUT)))
                 .map_err(|_| ReadError::Io)?;
-            match (&*self.stream).read(&mut body[filled..]) {
+            match (&*self.stream).read(buf) {
                 Ok(0) => return Err(ReadError::Closed),
-                Ok(n) => filled += n,
+                Ok(n) => return Ok(n),
                 Err(e) if is_timeout(&e) => {}
                 Err(_) => return Err(ReadError::Io),
             }
         }
-        Ok(body)
     }
 
     /// Whether body bytes have already arrived (then `100 Continue` is moot).

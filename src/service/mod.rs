@@ -21,7 +21,7 @@ mod render_route;
 mod routes;
 
 use crate::limits;
-use admission::Admission;
+use admission::{Admission, BodyBudget};
 use metrics::Metrics;
 use registry::Registry;
 use std::io;
@@ -46,6 +46,7 @@ pub struct ServiceConfig {
     pub concurrent_renders: usize,
     pub queue: usize,
     pub max_body: u64,
+    pub body_memory: u64,
     pub max_pixels: u64,
     pub max_samples: u64,
     pub max_spheres: usize,
@@ -67,6 +68,7 @@ impl Default for ServiceConfig {
             concurrent_renders: limits::DEFAULT_CONCURRENT_RENDERS,
             queue: limits::DEFAULT_QUEUE,
             max_body: limits::DEFAULT_MAX_BODY,
+            body_memory: limits::DEFAULT_BODY_MEMORY,
             max_pixels: limits::DEFAULT_MAX_PIXELS,
             max_samples: limits::DEFAULT_MAX_SAMPLES,
             max_spheres: limits::DEFAULT_MAX_SERVICE_SPHERES,
@@ -97,6 +99,9 @@ impl ServiceConfig {
         if self.concurrent_renders == 0 {
             return invalid("--renders must be at least 1");
         }
+        if self.body_memory < self.max_body {
+            return invalid("--body-memory must be at least --max-body");
+        }
         if self.threads == Some(0) {
             return invalid("--threads must be at least 1");
         }
@@ -109,6 +114,7 @@ pub(crate) struct State {
     config: ServiceConfig,
     metrics: Metrics,
     admission: Admission,
+    bodies: BodyBudget,
     pool: rayon::ThreadPool,
     connections: Registry,
     stopping: AtomicBool,
@@ -145,6 +151,7 @@ impl Server {
             .map_err(io::Error::other)?;
         let state = State {
             admission: Admission::new(config.concurrent_renders, config.queue),
+            bodies: BodyBudget::new(config.body_memory),
             config,
             metrics: Metrics::default(),
             pool,
