@@ -5,15 +5,16 @@
 #   cargo build --release
 #   bench/service.sh [throughput|overload|slowloris|fuzz|wrk|all]
 #
-# Environment: DUR (per run, default 5s; DUR_HEAVY 15s for the heavy scene), REPS (interleaved repetitions,
-# default 3), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
+# Environment: DUR (per run, default 10s; DUR_HEAVY 40s for the heavy scene), REPS (interleaved
+# repetitions, default 5; REPS_HEAVY 3), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
 # Needs python3 (slowloris, fuzz, JSON) and wrk (apt-get install -y wrk).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${VOXTRACE_BIN:-target/release/voxtrace}
-DUR=${DUR:-5s}
-DUR_HEAVY=${DUR_HEAVY:-15s}
-REPS=${REPS:-3}
+DUR=${DUR:-10s}
+DUR_HEAVY=${DUR_HEAVY:-40s}
+REPS=${REPS:-5}
+REPS_HEAVY=${REPS_HEAVY:-3}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
 WORK=$(mktemp -d)
 SERVER=
@@ -23,9 +24,9 @@ cleanup() {
 }
 trap cleanup EXIT
 
-# testSample at 256x256 (the standard case) and at 600x600 with 4 samples (heavy).
+# testSample at 256x256 (the standard case), and 10^5 spheres at 512x512 (heavy, 9.6 MB of text).
 sed 's/RES 600 600/RES 256 256/' scenes/testSample.txt > "$WORK/sample256.txt"
-cp scenes/testSample.txt "$WORK/sample600.txt"
+"$BIN" gen --spheres 100000 --dist uniform --seed 1 --res 512 512 -o "$WORK/heavy.txt" > /dev/null
 
 start_server() {
     "$BIN" serve --addr 127.0.0.1:0 "$@" > "$WORK/serve.out" 2> "$WORK/serve.err" &
@@ -55,47 +56,69 @@ cpu_of() { awk '{print $1 + $2}' "$1"; }
 server_cpu() { awk -v t="$(getconf CLK_TCK)" '{print ($14 + $15) / t}' "/proc/$SERVER/stat"; }
 
 throughput() {
-    echo "### Throughput: service vs in-process (median of $REPS runs of $DUR ($DUR_HEAVY heavy), interleaved)"
+    echo "### Throughput: service vs in-process, interleaved"
     echo
-    echo "Renders/s by wall clock, and CPU milliseconds per render (in-process: the whole process;"
-    echo "service: server + load client), which other work on the machine disturbs far less."
+    echo "Renders/s by wall clock (median over the repetitions), the median of the per-repetition"
+    echo "ratios (each service run against the in-process run next to it, the order alternating),"
+    echo "and CPU milliseconds per render (in-process: the whole process; service: server + load"
+    echo "client; both divided by renders answered in the window plus those still in flight)."
     echo
-    echo "| scene | concurrency | in-process renders/s | service renders/s | service / in-process | service / in-process saturation | in-process CPU ms/render | service CPU ms/render | CPU ratio |"
+    echo "| scene | concurrency | in-process renders/s | service renders/s | ratio of medians | median of paired ratios | in-process CPU ms/render | service CPU ms/render | CPU ratio |"
     echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
-    start_server
-    for case in "sample256.txt|spp=1|testSample 256×256|$DUR" "sample600.txt|spp=4|testSample 600×600, 4 spp|$DUR_HEAVY"; do
-        IFS='|' read -r scene query label dur <<< "$case"
+    # Room for 64 heavy scenes arriving at once (64 x 9.6 MB): the default
+    # body memory budget would rightly answer some of them 503.
+    start_server --body-memory 1073741824
+    : > "$WORK/saturation_lines"
+    for case in "sample256.txt|testSample 256×256|$DUR|$REPS" "heavy.txt|10⁵ spheres 512×512|$DUR_HEAVY|$REPS_HEAVY"; do
+        IFS='|' read -r scene label dur reps <<< "$case"
         rows=()
         for c in 1 2 8 64; do
-            : > "$WORK/in"; : > "$WORK/svc"; : > "$WORK/in_cpu"; : > "$WORK/svc_cpu"
-            for _ in $(seq "$REPS"); do
-                /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                    "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
-                field 'd["renders_per_s"]' < "$WORK/run.json" >> "$WORK/in"
-                n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
-                echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l >> "$WORK/in_cpu"
-
-                before=$(server_cpu)
-                /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                    "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
-                sleep 0.2
-                after=$(server_cpu)
-                field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' < "$WORK/run.json" >> "$WORK/svc"
-                n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
-                echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
+            : > "$WORK/in"; : > "$WORK/svc"; : > "$WORK/in_cpu"; : > "$WORK/svc_cpu"; : > "$WORK/pair"
+            for rep in $(seq "$reps"); do
+                order="in svc"
+                [ $((rep % 2)) = 0 ] && order="svc in"
+                for mode in $order; do
+                    if [ "$mode" = in ]; then
+                        /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                            "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                        in=$(field 'd["renders_per_s"]' < "$WORK/run.json")
+                        echo "$in" >> "$WORK/in"
+                        n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
+                        echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l >> "$WORK/in_cpu"
+                    else
+                        before=$(server_cpu)
+                        /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                            "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                        # Let the renders still in flight finish before reading the server's CPU.
+                        while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
+                        after=$(server_cpu)
+                        svc=$(field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' < "$WORK/run.json")
+                        echo "$svc" >> "$WORK/svc"
+                        n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
+                        echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
+                    fi
+                done
+                echo "$svc / $in" | bc -l >> "$WORK/pair"
             done
-            rows+=("$c $(median < "$WORK/in") $(median < "$WORK/svc") $(median < "$WORK/in_cpu") $(median < "$WORK/svc_cpu")")
+            rows+=("$c $(median < "$WORK/in") $(median < "$WORK/svc") $(median < "$WORK/pair") $(median < "$WORK/in_cpu") $(median < "$WORK/svc_cpu")")
             [ "$c" = 8 ] && [ "$scene" = sample256.txt ] && median < "$WORK/svc" > "$WORK/saturation"
         done
-        # In-process saturation: the best in-process throughput at any concurrency.
-        best=$(printf '%s\n' "${rows[@]}" | awk '{print $2}' | sort -g | tail -1)
         for row in "${rows[@]}"; do
-            read -r c in svc in_cpu svc_cpu <<< "$row"
-            printf '| %s | %d | %.1f | %.1f | %.3f | %.3f | %.2f | %.2f | %.3f |\n' "$label" "$c" "$in" "$svc" \
-                "$(echo "$svc / $in" | bc -l)" "$(echo "$svc / $best" | bc -l)" "$in_cpu" "$svc_cpu" "$(echo "$svc_cpu / $in_cpu" | bc -l)"
+            read -r c in svc pair in_cpu svc_cpu <<< "$row"
+            printf '| %s | %d | %.2f | %.2f | %.3f | %.3f | %.1f | %.1f | %.3f |\n' "$label" "$c" "$in" "$svc" \
+                "$(echo "$svc / $in" | bc -l)" "$pair" "$in_cpu" "$svc_cpu" "$(echo "$svc_cpu / $in_cpu" | bc -l)"
         done
+        # Saturation: each side's best throughput at any concurrency.
+        best_in=$(printf '%s\n' "${rows[@]}" | sort -k2 -g | tail -1)
+        best_svc=$(printf '%s\n' "${rows[@]}" | sort -k3 -g | tail -1)
+        read -r c_in in _ <<< "$best_in"
+        read -r c_svc _ svc _ <<< "$best_svc"
+        printf '%s: saturation in-process %.2f renders/s (c=%s), service %.2f (c=%s), ratio %.3f\n' "$label" "$in" "$c_in" "$svc" "$c_svc" \
+            "$(echo "$svc / $in" | bc -l)" >> "$WORK/saturation_lines"
     done
     stop_server
+    echo
+    cat "$WORK/saturation_lines"
     echo
 }
 

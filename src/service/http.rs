@@ -12,8 +12,9 @@ use std::time::{Duration, Instant};
 
 /// Bytes asked of the socket per read of a head, or of a discarded body.
 const READ_CHUNK: usize = 4096;
-/// A body's buffer (and its charge against the body budget) grows by this
-/// much at a time, as its bytes arrive.
+/// A body's buffer (and its charge against the body budget) starts at this
+/// size and doubles as its bytes arrive, so it is never more than twice
+/// what arrived (plus this) and a large body is moved only a few times.
 const BODY_CHUNK: usize = 64 * 1024;
 /// The shortest socket read timeout (std refuses zero, which to the OS
 /// means none at all).
@@ -240,7 +241,7 @@ impl Connection {
         let mut filled = 0;
         while filled < len {
             if filled == body.len() {
-                let more = (len - filled).min(BODY_CHUNK);
+                let more = (len - filled).min(filled.max(BODY_CHUNK));
                 if !charge.grow(more as u64) {
                     drop(body);
                     self.discard(len - filled, deadline)?;
