@@ -3,11 +3,14 @@
 # wrk for comparison). Prints markdown tables.
 #
 #   cargo build --release
-#   bench/service.sh [throughput|overload|slowloris|fuzz|wrk|all]
+#   bench/service.sh [throughput|instructions|overload|slowloris|fuzz|wrk|all]
 #
 # Environment: DUR (per run, default 10s; DUR_HEAVY 40s for the heavy scene), REPS (interleaved
-# repetitions, default 5; REPS_HEAVY 3), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
-# Needs python3 (slowloris, fuzz, JSON) and wrk (apt-get install -y wrk).
+# repetitions, default 5; REPS_HEAVY 3), SCENES (throughput cases, default "small heavy"),
+# CONCURRENCY (throughput, default "1 2 8 64"),
+# FUZZ_COUNT (default 100000), VOXTRACE_BIN.
+# Needs python3 (slowloris, fuzz, JSON), wrk (apt-get install -y wrk) and, for
+# instructions, valgrind (apt-get install -y valgrind).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${VOXTRACE_BIN:-target/release/voxtrace}
@@ -15,6 +18,8 @@ DUR=${DUR:-10s}
 DUR_HEAVY=${DUR_HEAVY:-40s}
 REPS=${REPS:-5}
 REPS_HEAVY=${REPS_HEAVY:-3}
+SCENES=${SCENES:-small heavy}
+CONCURRENCY=${CONCURRENCY:-1 2 8 64}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
 WORK=$(mktemp -d)
 SERVER=
@@ -65,14 +70,17 @@ throughput() {
     echo
     echo "| scene | concurrency | in-process renders/s | service renders/s | ratio of medians | median of paired ratios | in-process CPU ms/render | service CPU ms/render | CPU ratio |"
     echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
-    # Room for 64 heavy scenes arriving at once (64 x 9.6 MB): the default
-    # body memory budget would rightly answer some of them 503.
-    start_server --body-memory 1073741824
+    # Room for 64 heavy scenes arriving at once (64 x 9.6 MB), and for 62 of
+    # them waiting in the queue (about a minute): with the defaults (256 MiB of
+    # bodies, 30 s in the queue) the service would rightly answer some 503.
+    start_server --body-memory 1073741824 --render-timeout-ms 120000
     : > "$WORK/saturation_lines"
-    for case in "sample256.txt|testSample 256×256|$DUR|$REPS" "heavy.txt|10⁵ spheres 512×512|$DUR_HEAVY|$REPS_HEAVY"; do
-        IFS='|' read -r scene label dur reps <<< "$case"
+    : > "$WORK/not_200"
+    for case in "small|sample256.txt|testSample 256×256|$DUR|$REPS" "heavy|heavy.txt|10⁵ spheres 512×512|$DUR_HEAVY|$REPS_HEAVY"; do
+        IFS='|' read -r name scene label dur reps <<< "$case"
+        [[ " $SCENES " == *" $name "* ]] || continue
         rows=()
-        for c in 1 2 8 64; do
+        for c in $CONCURRENCY; do
             : > "$WORK/in"; : > "$WORK/svc"; : > "$WORK/in_cpu"; : > "$WORK/svc_cpu"; : > "$WORK/pair"
             for rep in $(seq "$reps"); do
                 order="in svc"
@@ -88,11 +96,12 @@ throughput() {
                     else
                         before=$(server_cpu)
                         /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                            "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                            "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --timeout 300s --json > "$WORK/run.json"
                         # Let the renders still in flight finish before reading the server's CPU.
                         while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
                         after=$(server_cpu)
-                        svc=$(field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' < "$WORK/run.json")
+                        svc=$(field 'd["renders_per_s"]' < "$WORK/run.json")
+                        field '"" if d["status"].get("200") == d["requests"] and not d["errors"] else "%s c=%s: status %s, errors %s" % ("'"$label"'", d["concurrency"], d["status"], d["errors"])' < "$WORK/run.json" >> "$WORK/not_200"
                         echo "$svc" >> "$WORK/svc"
                         n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
                         echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
@@ -119,6 +128,50 @@ throughput() {
     stop_server
     echo
     cat "$WORK/saturation_lines"
+    grep . "$WORK/not_200" | sed 's/^/not all 200: /' || true
+    echo
+}
+
+# collected FILE: the instruction count valgrind reported in FILE.
+collected() { sed -n 's/.*Collected : //p' "$1"; }
+
+instructions() {
+    echo "### Instructions per render: service vs in-process (callgrind, one render thread)"
+    echo
+    echo "| scene | in-process | service (server) | load client per request | service / in-process |"
+    echo "|---|---:|---:|---:|---:|"
+    export RAYON_NUM_THREADS=1
+    for case in "sample256.txt|testSample 256×256|2|12" "heavy.txt|10⁵ spheres 512×512|1|2"; do
+        IFS='|' read -r scene label few many <<< "$case"
+        # In process: the difference between two runs is the cost of the renders between them.
+        for n in "$few" "$many"; do
+            valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.in.$n" \
+                "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c 1 --requests "$n" --json > /dev/null 2> "$WORK/vg.in.$n"
+        done
+        in=$(( ($(collected "$WORK/vg.in.$many") - $(collected "$WORK/vg.in.$few")) / (many - few) ))
+        # The server under callgrind: dump after a warm-up, then after the measured requests,
+        # sent by two clients (under callgrind too) whose difference is a request's cost.
+        valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.svc" "$BIN" serve --addr 127.0.0.1:0 > "$WORK/serve.out" 2> "$WORK/vg.svc" &
+        SERVER=$!
+        for _ in $(seq 200); do
+            ADDR=$(sed -n 's|^listening on http://||p' "$WORK/serve.out")
+            [ -n "$ADDR" ] && break
+            sleep 0.1
+        done
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c 1 --requests "$few" --json > /dev/null
+        callgrind_control -d "$SERVER" > /dev/null
+        for n in "$few" "$many"; do
+            valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.client.$n" \
+                "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c 1 --requests "$n" --json > /dev/null 2> "$WORK/vg.client.$n"
+        done
+        callgrind_control -d "$SERVER" > /dev/null
+        svc=$(( $(sed -n 's/^summary: //p' "$WORK/cg.svc.2") / (few + many) ))
+        client=$(( ($(collected "$WORK/vg.client.$many") - $(collected "$WORK/vg.client.$few")) / (many - few) ))
+        kill "$SERVER"; wait "$SERVER" 2>/dev/null || true; SERVER=
+        rm -f "$WORK"/cg.*
+        printf '| %s | %d | %d | %d | %.4f |\n' "$label" "$in" "$svc" "$client" "$(echo "($svc + $client) / $in" | bc -l)"
+    done
+    unset RAYON_NUM_THREADS
     echo
 }
 
@@ -220,10 +273,11 @@ wrk_compare() {
 what=${1:-all}
 case "$what" in
     throughput) throughput ;;
+    instructions) instructions ;;
     overload) overload ;;
     slowloris) slowloris ;;
     fuzz) fuzz ;;
     wrk) wrk_compare ;;
-    all) throughput; overload; slowloris; fuzz; wrk_compare ;;
-    *) echo "usage: $0 [throughput|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
+    all) throughput; instructions; overload; slowloris; fuzz; wrk_compare ;;
+    *) echo "usage: $0 [throughput|instructions|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
 esac
