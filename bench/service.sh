@@ -159,12 +159,12 @@ instructions() {
             sleep 0.1
         done
         "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c 1 --requests "$few" --json > /dev/null
-        callgrind_control -d "$SERVER" > /dev/null
+        callgrind_control -d "$SERVER" > /dev/null 2>&1
         for n in "$few" "$many"; do
             valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.client.$n" \
                 "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c 1 --requests "$n" --json > /dev/null 2> "$WORK/vg.client.$n"
         done
-        callgrind_control -d "$SERVER" > /dev/null
+        callgrind_control -d "$SERVER" > /dev/null 2>&1
         svc=$(( $(sed -n 's/^summary: //p' "$WORK/cg.svc.2") / (few + many) ))
         client=$(( ($(collected "$WORK/vg.client.$many") - $(collected "$WORK/vg.client.$few")) / (many - few) ))
         kill "$SERVER"; wait "$SERVER" 2>/dev/null || true; SERVER=

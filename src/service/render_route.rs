@@ -142,7 +142,13 @@ pub fn handle(
     // A place is taken before parsing, so the parsed scenes held at once
     // are bounded by the queue as the bodies are by their budget.
     let place = state.admission.reserve().map_err(busy)?;
-    let scene = scene::parse(&body).map_err(|e| ApiError::scene(&e))?;
+    // The parser is parallel: it runs on the render pool too, so the
+    // service never starts rayon's global pool beside its own (which would
+    // put twice as many busy threads as `--threads` on the cores).
+    let scene = state
+        .pool
+        .install(|| scene::parse(&body))
+        .map_err(|e| ApiError::scene(&e))?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
 
