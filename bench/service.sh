@@ -3,17 +3,23 @@
 # wrk for comparison). Prints markdown tables.
 #
 #   cargo build --release
-#   bench/service.sh [throughput|overload|slowloris|fuzz|wrk|all]
+#   bench/service.sh [throughput|instructions|overload|slowloris|fuzz|wrk|all]
 #
-# Environment: DUR (per run, default 5s; DUR_HEAVY 15s for the heavy scene), REPS (interleaved repetitions,
-# default 3), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
-# Needs python3 (slowloris, fuzz, JSON) and wrk (apt-get install -y wrk).
+# Environment: DUR (per run, default 10s; DUR_HEAVY 40s for the heavy scene), REPS (interleaved
+# repetitions, default 5; REPS_HEAVY 3), SCENES (throughput cases, default "small heavy"),
+# CONCURRENCY (throughput, default "1 2 8 64"),
+# FUZZ_COUNT (default 100000), VOXTRACE_BIN.
+# Needs python3 (slowloris, fuzz, JSON), wrk (apt-get install -y wrk) and, for
+# instructions, valgrind (apt-get install -y valgrind).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${VOXTRACE_BIN:-target/release/voxtrace}
-DUR=${DUR:-5s}
-DUR_HEAVY=${DUR_HEAVY:-15s}
-REPS=${REPS:-3}
+DUR=${DUR:-10s}
+DUR_HEAVY=${DUR_HEAVY:-40s}
+REPS=${REPS:-5}
+REPS_HEAVY=${REPS_HEAVY:-3}
+SCENES=${SCENES:-small heavy}
+CONCURRENCY=${CONCURRENCY:-1 2 8 64}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
 WORK=$(mktemp -d)
 SERVER=
@@ -23,9 +29,9 @@ cleanup() {
 }
 trap cleanup EXIT
 
-# testSample at 256x256 (the standard case) and at 600x600 with 4 samples (heavy).
+# testSample at 256x256 (the standard case), and 10^5 spheres at 512x512 (heavy, 9.6 MB of text).
 sed 's/RES 600 600/RES 256 256/' scenes/testSample.txt > "$WORK/sample256.txt"
-cp scenes/testSample.txt "$WORK/sample600.txt"
+"$BIN" gen --spheres 100000 --dist uniform --seed 1 --res 512 512 -o "$WORK/heavy.txt" > /dev/null
 
 start_server() {
     "$BIN" serve --addr 127.0.0.1:0 "$@" > "$WORK/serve.out" 2> "$WORK/serve.err" &
@@ -55,47 +61,117 @@ cpu_of() { awk '{print $1 + $2}' "$1"; }
 server_cpu() { awk -v t="$(getconf CLK_TCK)" '{print ($14 + $15) / t}' "/proc/$SERVER/stat"; }
 
 throughput() {
-    echo "### Throughput: service vs in-process (median of $REPS runs of $DUR ($DUR_HEAVY heavy), interleaved)"
+    echo "### Throughput: service vs in-process, interleaved"
     echo
-    echo "Renders/s by wall clock, and CPU milliseconds per render (in-process: the whole process;"
-    echo "service: server + load client), which other work on the machine disturbs far less."
+    echo "Renders/s by wall clock (median over the repetitions), the median of the per-repetition"
+    echo "ratios (each service run against the in-process run next to it, the order alternating),"
+    echo "and CPU milliseconds per render (in-process: the whole process; service: server + load"
+    echo "client; both divided by renders answered in the window plus those still in flight)."
     echo
-    echo "| scene | concurrency | in-process renders/s | service renders/s | service / in-process | service / in-process saturation | in-process CPU ms/render | service CPU ms/render | CPU ratio |"
+    echo "| scene | concurrency | in-process renders/s | service renders/s | ratio of medians | median of paired ratios | in-process CPU ms/render | service CPU ms/render | CPU ratio |"
     echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
-    start_server
-    for case in "sample256.txt|spp=1|testSample 256×256|$DUR" "sample600.txt|spp=4|testSample 600×600, 4 spp|$DUR_HEAVY"; do
-        IFS='|' read -r scene query label dur <<< "$case"
+    # Room for 64 heavy scenes arriving at once (64 x 9.6 MB), and for 62 of
+    # them waiting in the queue (about a minute): with the defaults (256 MiB of
+    # bodies, 30 s in the queue) the service would rightly answer some 503.
+    start_server --body-memory 1073741824 --render-timeout-ms 120000
+    : > "$WORK/saturation_lines"
+    : > "$WORK/not_200"
+    for case in "small|sample256.txt|testSample 256×256|$DUR|$REPS" "heavy|heavy.txt|10⁵ spheres 512×512|$DUR_HEAVY|$REPS_HEAVY"; do
+        IFS='|' read -r name scene label dur reps <<< "$case"
+        [[ " $SCENES " == *" $name "* ]] || continue
         rows=()
-        for c in 1 2 8 64; do
-            : > "$WORK/in"; : > "$WORK/svc"; : > "$WORK/in_cpu"; : > "$WORK/svc_cpu"
-            for _ in $(seq "$REPS"); do
-                /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                    "$BIN" load --in-process --url "http://x/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
-                field 'd["renders_per_s"]' < "$WORK/run.json" >> "$WORK/in"
-                n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
-                echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l >> "$WORK/in_cpu"
-
-                before=$(server_cpu)
-                /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                    "$BIN" load --url "http://$ADDR/render?$query" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
-                sleep 0.2
-                after=$(server_cpu)
-                field 'd["renders_per_s"] if d["status"].get("200") == d["requests"] else -1' < "$WORK/run.json" >> "$WORK/svc"
-                n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
-                echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
+        for c in $CONCURRENCY; do
+            : > "$WORK/in"; : > "$WORK/svc"; : > "$WORK/in_cpu"; : > "$WORK/svc_cpu"; : > "$WORK/pair"
+            for rep in $(seq "$reps"); do
+                order="in svc"
+                [ $((rep % 2)) = 0 ] && order="svc in"
+                for mode in $order; do
+                    if [ "$mode" = in ]; then
+                        /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                            "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                        in=$(field 'd["renders_per_s"]' < "$WORK/run.json")
+                        echo "$in" >> "$WORK/in"
+                        n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
+                        echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l >> "$WORK/in_cpu"
+                    else
+                        before=$(server_cpu)
+                        /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                            "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --timeout 300s --json > "$WORK/run.json"
+                        # Let the renders still in flight finish before reading the server's CPU.
+                        while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
+                        after=$(server_cpu)
+                        svc=$(field 'd["renders_per_s"]' < "$WORK/run.json")
+                        field '"" if d["status"].get("200") == d["requests"] and not d["errors"] else "%s c=%s: status %s, errors %s" % ("'"$label"'", d["concurrency"], d["status"], d["errors"])' < "$WORK/run.json" >> "$WORK/not_200"
+                        echo "$svc" >> "$WORK/svc"
+                        n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
+                        echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
+                    fi
+                done
+                echo "$svc / $in" | bc -l >> "$WORK/pair"
             done
-            rows+=("$c $(median < "$WORK/in") $(median < "$WORK/svc") $(median < "$WORK/in_cpu") $(median < "$WORK/svc_cpu")")
+            rows+=("$c $(median < "$WORK/in") $(median < "$WORK/svc") $(median < "$WORK/pair") $(median < "$WORK/in_cpu") $(median < "$WORK/svc_cpu")")
             [ "$c" = 8 ] && [ "$scene" = sample256.txt ] && median < "$WORK/svc" > "$WORK/saturation"
         done
-        # In-process saturation: the best in-process throughput at any concurrency.
-        best=$(printf '%s\n' "${rows[@]}" | awk '{print $2}' | sort -g | tail -1)
         for row in "${rows[@]}"; do
-            read -r c in svc in_cpu svc_cpu <<< "$row"
-            printf '| %s | %d | %.1f | %.1f | %.3f | %.3f | %.2f | %.2f | %.3f |\n' "$label" "$c" "$in" "$svc" \
-                "$(echo "$svc / $in" | bc -l)" "$(echo "$svc / $best" | bc -l)" "$in_cpu" "$svc_cpu" "$(echo "$svc_cpu / $in_cpu" | bc -l)"
+            read -r c in svc pair in_cpu svc_cpu <<< "$row"
+            printf '| %s | %d | %.2f | %.2f | %.3f | %.3f | %.1f | %.1f | %.3f |\n' "$label" "$c" "$in" "$svc" \
+                "$(echo "$svc / $in" | bc -l)" "$pair" "$in_cpu" "$svc_cpu" "$(echo "$svc_cpu / $in_cpu" | bc -l)"
         done
+        # Saturation: each side's best throughput at any concurrency.
+        best_in=$(printf '%s\n' "${rows[@]}" | sort -k2 -g | tail -1)
+        best_svc=$(printf '%s\n' "${rows[@]}" | sort -k3 -g | tail -1)
+        read -r c_in in _ <<< "$best_in"
+        read -r c_svc _ svc _ <<< "$best_svc"
+        printf '%s: saturation in-process %.2f renders/s (c=%s), service %.2f (c=%s), ratio %.3f\n' "$label" "$in" "$c_in" "$svc" "$c_svc" \
+            "$(echo "$svc / $in" | bc -l)" >> "$WORK/saturation_lines"
     done
     stop_server
+    echo
+    cat "$WORK/saturation_lines"
+    grep . "$WORK/not_200" | sed 's/^/not all 200: /' || true
+    echo
+}
+
+# collected FILE: the instruction count valgrind reported in FILE.
+collected() { sed -n 's/.*Collected : //p' "$1"; }
+
+instructions() {
+    echo "### Instructions per render: service vs in-process (callgrind, one render thread)"
+    echo
+    echo "| scene | in-process | service (server) | load client per request | service / in-process |"
+    echo "|---|---:|---:|---:|---:|"
+    export RAYON_NUM_THREADS=1
+    for case in "sample256.txt|testSample 256×256|2|12" "heavy.txt|10⁵ spheres 512×512|1|2"; do
+        IFS='|' read -r scene label few many <<< "$case"
+        # In process: the difference between two runs is the cost of the renders between them.
+        for n in "$few" "$many"; do
+            valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.in.$n" \
+                "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c 1 --requests "$n" --json > /dev/null 2> "$WORK/vg.in.$n"
+        done
+        in=$(( ($(collected "$WORK/vg.in.$many") - $(collected "$WORK/vg.in.$few")) / (many - few) ))
+        # The server under callgrind: dump after a warm-up, then after the measured requests,
+        # sent by two clients (under callgrind too) whose difference is a request's cost.
+        valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.svc" "$BIN" serve --addr 127.0.0.1:0 > "$WORK/serve.out" 2> "$WORK/vg.svc" &
+        SERVER=$!
+        for _ in $(seq 200); do
+            ADDR=$(sed -n 's|^listening on http://||p' "$WORK/serve.out")
+            [ -n "$ADDR" ] && break
+            sleep 0.1
+        done
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c 1 --requests "$few" --json > /dev/null
+        callgrind_control -d "$SERVER" > /dev/null 2>&1
+        for n in "$few" "$many"; do
+            valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.client.$n" \
+                "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c 1 --requests "$n" --json > /dev/null 2> "$WORK/vg.client.$n"
+        done
+        callgrind_control -d "$SERVER" > /dev/null 2>&1
+        svc=$(( $(sed -n 's/^summary: //p' "$WORK/cg.svc.2") / (few + many) ))
+        client=$(( ($(collected "$WORK/vg.client.$many") - $(collected "$WORK/vg.client.$few")) / (many - few) ))
+        kill "$SERVER"; wait "$SERVER" 2>/dev/null || true; SERVER=
+        rm -f "$WORK"/cg.*
+        printf '| %s | %d | %d | %d | %.4f |\n' "$label" "$in" "$svc" "$client" "$(echo "($svc + $client) / $in" | bc -l)"
+    done
+    unset RAYON_NUM_THREADS
     echo
 }
 
@@ -110,7 +186,7 @@ overload() {
     rate=$(echo "4 * $sat" | bc -l)
     echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 30 s, testSample 256×256"
     echo
-    start_server --workers 512
+    start_server
     sleep 0.3
     rss0=$(proc VmRSS)
     "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 30s --rate "$rate" --json > "$WORK/overload.json" &
@@ -131,16 +207,26 @@ overload() {
 }
 
 slowloris() {
-    echo "### Slow clients: 500 connections trickling their heads for 20 s, one normal client at 2 renders/s"
+    echo "### Slow clients: 500 connections (250 trickling their heads, 250 idle) for 30 s; a normal client at 5 renders/s, testSample 256×256"
     echo
     start_server
-    python3 bench/slowloris.py 127.0.0.1 "${ADDR##*:}" 500 20 2 > "$WORK/slow.txt" &
+    normal() {
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 4 -d 20s --rate 5 --json
+    }
+    summary='"status %s, errors %s, latency ms p50 %.1f p90 %.1f p99 %.1f max %.1f" % (d["status"], d["errors"], d["latency_ms"]["p50"], d["latency_ms"]["p90"], d["latency_ms"]["p99"], d["latency_ms"]["max"])'
+    normal > "$WORK/unloaded.json"
+    python3 bench/slowloris.py 127.0.0.1 "${ADDR##*:}" 500 30 2 > "$WORK/slow.txt" &
     SLOW=$!
     sleep 3
-    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 4 -d 12s --rate 2 --json > "$WORK/normal.json"
+    echo "    server threads with the slow connections open: $(proc Threads), open connections: $(metric voxtrace_open_connections)"
+    normal > "$WORK/normal.json"
     wait "$SLOW"
+    sleep 0.5
     sed 's/^/    /' "$WORK/slow.txt"
-    field '"    normal client: status %s, errors %s, latency ms %s" % (d["status"], d["errors"], d["latency_ms"])' < "$WORK/normal.json"
+    echo "    normal client alone:                 $(field "$summary" < "$WORK/unloaded.json")"
+    echo "    normal client beside the slow ones:  $(field "$summary" < "$WORK/normal.json")"
+    echo "    p50 ratio $(field 'd["latency_ms"]["p50"]' < "$WORK/normal.json") / $(field 'd["latency_ms"]["p50"]' < "$WORK/unloaded.json"), p99 ratio $(field 'd["latency_ms"]["p99"]' < "$WORK/normal.json") / $(field 'd["latency_ms"]["p99"]' < "$WORK/unloaded.json")"
+    echo "    408s answered by the server: $(curl -s "http://$ADDR/metrics" | awk '/route="other",status="408"/ {print $2}'); afterwards open connections (counting the /metrics request): $(metric voxtrace_open_connections), threads: $(proc Threads)"
     stop_server
     echo
 }
@@ -187,10 +273,11 @@ wrk_compare() {
 what=${1:-all}
 case "$what" in
     throughput) throughput ;;
+    instructions) instructions ;;
     overload) overload ;;
     slowloris) slowloris ;;
     fuzz) fuzz ;;
     wrk) wrk_compare ;;
-    all) throughput; overload; slowloris; fuzz; wrk_compare ;;
-    *) echo "usage: $0 [throughput|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
+    all) throughput; instructions; overload; slowloris; fuzz; wrk_compare ;;
+    *) echo "usage: $0 [throughput|instructions|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
 esac

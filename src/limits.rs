@@ -25,19 +25,21 @@ pub const ADAPTIVE_MIN_WEIGHT: f64 = 1.0 / 512.0;
 
 /// Where the service listens: loopback only, unless told otherwise.
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
-/// Connection handler threads. Each serves one connection at a time, so this
-/// is also the number of clients served at once; the rest wait in the backlog.
-pub const DEFAULT_WORKERS: usize = 128;
-/// Accepted connections waiting for a handler; past this a new connection is
-/// answered 503 at once and closed.
-pub const DEFAULT_BACKLOG: usize = 1_024;
+/// Open client connections. Each has its own small reader thread, so slow or
+/// idle clients never wait behind one another or hold the render path; past
+/// this a new connection is answered 503 at once and closed.
+pub const DEFAULT_MAX_CONNECTIONS: usize = 1_024;
 /// Renders running at once on the render pool. Two keep every core busy
 /// while one render parses or encodes outside the pool.
 pub const DEFAULT_CONCURRENT_RENDERS: usize = 2;
 /// Renders waiting for a slot; past this `POST /render` is answered 503.
 pub const DEFAULT_QUEUE: usize = 64;
-/// Largest request body (scene text) in bytes.
-pub const DEFAULT_MAX_BODY: u64 = 8 * 1024 * 1024;
+/// Largest request body (scene text) in bytes: some 170,000 spheres as
+/// `voxtrace gen` writes them.
+pub const DEFAULT_MAX_BODY: u64 = 16 * 1024 * 1024;
+/// Request bodies held in memory at once, in bytes, charged as they arrive;
+/// a body that would go past it is answered 503.
+pub const DEFAULT_BODY_MEMORY: u64 = 256 * 1024 * 1024;
 /// Largest request head (request line and headers) in bytes; larger is 431.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 /// Most header lines in one request; more is 431.
@@ -59,9 +61,5 @@ pub const DEFAULT_HEAD_TIMEOUT_MS: u64 = 10_000;
 pub const DEFAULT_BODY_TIMEOUT_MS: u64 = 30_000;
 /// Time a single write to a client may block.
 pub const DEFAULT_WRITE_TIMEOUT_MS: u64 = 10_000;
-/// When connections are waiting for a handler, a request head (and an idle
-/// connection) gets only this long, so slow or idle clients cannot hold every
-/// handler while others wait.
-pub const PRESSURED_HEAD_TIMEOUT_MS: u64 = 1_000;
 /// What `Retry-After` tells a client turned away by a full queue, in seconds.
 pub const RETRY_AFTER_S: u32 = 1;

@@ -148,9 +148,11 @@ fn cli_render(scene: &str, extension: &str) -> Vec<u8> {
 
 /// A scene that costs as much as asked: one sphere filling the view, lit by
 /// 1000 lights, so every pixel sample casts 1000 shadow rays whatever the index.
+/// The image is narrow and tall: the render checks its deadline between rows,
+/// so short rows keep it close to its budget even on a busy machine.
 fn costly_scene() -> Vec<u8> {
     let mut text = String::from(
-        "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 256 256\nSPHERE big 0 0 -3 4 4 1 1 1 1 0.1 0.8 0.2 0 10\n",
+        "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 16 4096\nSPHERE big 0 0 -3 4 4 1 1 1 1 0.1 0.8 0.2 0 10\n",
     );
     for i in 0..1000 {
         text += &format!("LIGHT l{i} {} {} 0 0.001 0.001 0.001\n", i % 10, i / 100);
@@ -583,36 +585,169 @@ fn sixteen_concurrent_clients_are_all_served_correctly() {
     assert!(metrics.contains("voxtrace_renders_total 32\n"));
 }
 
+/// Whether the server has said nothing yet and kept the connection open.
+fn silent_and_open(client: &Client) -> bool {
+    let stream = client.reader.get_ref();
+    stream.set_nonblocking(true).unwrap();
+    let mut byte = [0u8; 1];
+    let silent =
+        matches!(stream.peek(&mut byte), Err(e) if e.kind() == std::io::ErrorKind::WouldBlock);
+    stream.set_nonblocking(false).unwrap();
+    silent
+}
+
 #[test]
-fn slow_clients_cannot_hold_every_handler_while_others_wait() {
-    // Two handlers, both taken by clients that trickle their heads; the
-    // normal client waiting behind them must not wait the full head timeout.
+fn idle_and_trickling_connections_do_not_hold_up_a_render() {
+    // 300 connections sit idle or stop halfway through their heads, with
+    // long deadlines. A normal client's render is answered while every one
+    // of them is still open and unanswered: it waited for none of them.
     let server = start(ServiceConfig {
-        workers: 2,
-        head_timeout: Duration::from_secs(20),
-        idle_timeout: Duration::from_secs(20),
+        head_timeout: Duration::from_secs(60),
+        idle_timeout: Duration::from_secs(60),
         ..ServiceConfig::default()
     });
-    let mut slow: Vec<Client> = (0..2).map(|_| Client::connect(server.addr())).collect();
-    for client in &mut slow {
-        client.send(b"GET /healthz HTTP/1.1\r\nX-Slow: ");
+    let mut slow: Vec<Client> = (0..300).map(|_| Client::connect(server.addr())).collect();
+    for client in slow.iter_mut().step_by(2) {
+        client.send(b"POST /render HTTP/1.1\r\nHost: t\r\nX-Slow: ");
     }
-    std::thread::sleep(Duration::from_millis(200));
+    wait_for_metric(server.addr(), "voxtrace_open_connections", 301);
+    let mut normal = Client::connect(server.addr());
+    for _ in 0..3 {
+        let reply = normal.request("POST", "/render", &[], &sample("testDiffuse.txt"));
+        assert_eq!(reply.status, 200, "{}", reply.text());
+    }
+    assert!(slow.iter().all(silent_and_open));
+}
+
+#[test]
+fn a_trickling_head_is_cut_at_its_deadline_with_408() {
+    // A byte every 50 ms keeps every single read short; the deadline is on
+    // the whole head, so the client is still cut off.
+    let server = start(ServiceConfig {
+        head_timeout: Duration::from_millis(400),
+        ..ServiceConfig::default()
+    });
+    let mut client = Client::connect(server.addr());
     let started = Instant::now();
-    let reply = Client::connect(server.addr()).request("GET", "/healthz", &[], b"");
-    assert_eq!(reply.status, 200);
+    let mut sent = 0;
+    for byte in b"GET /healthz HTTP/1.1\r\nX-Slow: ".iter().cycle() {
+        if client.reader.get_mut().write_all(&[*byte]).is_err() {
+            break;
+        }
+        sent += 1;
+        std::thread::sleep(Duration::from_millis(50));
+        if !silent_and_open(&client) {
+            break;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(10),
+            "still reading after {sent} bytes"
+        );
+    }
+    let cut = started.elapsed();
+    let reply = client.read_reply(false);
+    assert_eq!(reply.status, 408);
+    assert!(client.closed());
     assert!(
-        started.elapsed() < Duration::from_secs(5),
-        "waited {:?}",
+        cut >= Duration::from_millis(400) && sent >= 8,
+        "cut after {cut:?}, {sent} bytes"
+    );
+}
+
+#[test]
+fn an_idle_connection_is_closed_at_the_idle_deadline() {
+    let server = start(ServiceConfig {
+        idle_timeout: Duration::from_millis(300),
+        ..ServiceConfig::default()
+    });
+    let mut client = Client::connect(server.addr());
+    assert_eq!(client.request("GET", "/healthz", &[], b"").status, 200);
+    let started = Instant::now();
+    // Closed without a word: nothing had been asked.
+    assert!(client.closed());
+    let idle = started.elapsed();
+    assert!(
+        idle >= Duration::from_millis(250) && idle < Duration::from_secs(10),
+        "closed after {idle:?}"
+    );
+}
+
+#[test]
+fn connections_over_the_cap_get_503_at_once() {
+    let server = start(ServiceConfig {
+        max_connections: 2,
+        idle_timeout: Duration::from_secs(60),
+        ..ServiceConfig::default()
+    });
+    let held: Vec<Client> = (0..2).map(|_| Client::connect(server.addr())).collect();
+    let started = Instant::now();
+    let mut over = Client::connect(server.addr());
+    let reply = over.read_reply(false);
+    assert_eq!(
+        (reply.status, reply.header("retry-after")),
+        (503, Some("1"))
+    );
+    assert!(over.closed());
+    assert!(started.elapsed() < Duration::from_secs(5));
+    // Once a held connection closes, its place is free again.
+    drop(held);
+    let started = Instant::now();
+    loop {
+        let reply = Client::connect(server.addr()).request("GET", "/healthz", &[], b"");
+        if reply.status == 200 {
+            break;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(10),
+            "no place freed"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn stopping_closes_waiting_connections_at_once() {
+    let server = start(ServiceConfig {
+        idle_timeout: Duration::from_secs(60),
+        head_timeout: Duration::from_secs(60),
+        ..ServiceConfig::default()
+    });
+    let mut idle = Client::connect(server.addr());
+    let mut halfway = Client::connect(server.addr());
+    halfway.send(b"GET /healthz HTTP/1.1\r\n");
+    wait_for_metric(server.addr(), "voxtrace_open_connections", 3);
+    let started = Instant::now();
+    server.stop();
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "stop took {:?}",
         started.elapsed()
     );
-    // At least one trickling client was cut off (408) to make room.
-    let cut_off = slow.iter_mut().any(|client| {
-        let stream = client.reader.get_ref();
-        stream.set_nonblocking(true).unwrap();
-        let mut first = [0u8; 12];
-        let n = stream.peek(&mut first).unwrap_or(0);
-        &first[..n] == b"HTTP/1.1 408"
+    assert!(idle.closed() && halfway.closed());
+}
+
+#[test]
+fn bodies_past_the_memory_budget_get_503_and_the_connection_stays_usable() {
+    let server = start(ServiceConfig {
+        max_body: 1000,
+        body_memory: 1000,
+        ..ServiceConfig::default()
     });
-    assert!(cut_off);
+    // Half a body, then silence: its 1000 bytes are charged.
+    let mut holder = Client::connect(server.addr());
+    holder.send(b"POST /render HTTP/1.1\r\nHost: t\r\nContent-Length: 1000\r\n\r\nNEAR 1\n");
+    wait_for_metric(server.addr(), "voxtrace_body_bytes", 1000);
+    let mut client = Client::connect(server.addr());
+    let scene = sample("testDiffuse.txt");
+    let reply = client.request("POST", "/render", &["Accept: application/json"], &scene);
+    assert_eq!(
+        (reply.status, reply.header("retry-after")),
+        (503, Some("1"))
+    );
+    assert_eq!(reply.json()["error"], "busy");
+    // The refused body was read to its end: the next request parses.
+    assert_eq!(client.request("GET", "/healthz", &[], b"").status, 200);
+    drop(holder);
+    wait_for_metric(server.addr(), "voxtrace_body_bytes", 0);
+    assert_eq!(client.request("POST", "/render", &[], &scene).status, 200);
 }

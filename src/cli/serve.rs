@@ -11,12 +11,9 @@ pub struct ServeArgs {
     /// Address to listen on; port 0 picks a free port.
     #[arg(long, default_value = limits::DEFAULT_ADDR)]
     addr: String,
-    /// Connection handler threads (clients served at once).
-    #[arg(long, default_value_t = limits::DEFAULT_WORKERS)]
-    workers: usize,
-    /// Accepted connections that may wait for a handler before new ones get 503.
-    #[arg(long, default_value_t = limits::DEFAULT_BACKLOG)]
-    backlog: usize,
+    /// Open connections, each with its own reader thread; past this a new one gets 503.
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_CONNECTIONS)]
+    max_connections: usize,
     /// Renders running at once.
     #[arg(long, default_value_t = limits::DEFAULT_CONCURRENT_RENDERS)]
     renders: usize,
@@ -26,6 +23,9 @@ pub struct ServeArgs {
     /// Largest request body in bytes (larger: 413).
     #[arg(long, default_value_t = limits::DEFAULT_MAX_BODY)]
     max_body: u64,
+    /// Request bodies held in memory at once, in bytes (past it: 503).
+    #[arg(long, default_value_t = limits::DEFAULT_BODY_MEMORY)]
+    body_memory: u64,
     /// Largest image, width × height (larger: 422).
     #[arg(long, default_value_t = limits::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
@@ -60,11 +60,11 @@ impl ServeArgs {
         let ms = Duration::from_millis;
         ServiceConfig {
             addr: self.addr.clone(),
-            workers: self.workers,
-            backlog: self.backlog,
+            max_connections: self.max_connections,
             concurrent_renders: self.renders,
             queue: self.queue,
             max_body: self.max_body,
+            body_memory: self.body_memory,
             max_pixels: self.max_pixels,
             max_samples: self.max_samples,
             max_spheres: self.max_spheres,

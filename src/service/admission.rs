@@ -1,7 +1,10 @@
 //! Bounded admission to the render pool: at most `slots` renders run at once
-//! and at most `queue` more wait for a slot; anyone past that is turned away
-//! at once (503) instead of piling up.
+//! and at most `queue` more hold a place (their scene being parsed, or
+//! waiting for a slot); anyone past that is turned away at once (503) instead
+//! of piling up. And a bound on the request bodies held in memory at once,
+//! charged as their bytes arrive.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
@@ -15,6 +18,7 @@ pub struct Admission {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Counts {
     pub running: usize,
+    /// Renders holding a place but not a slot yet.
     pub waiting: usize,
 }
 
@@ -25,6 +29,14 @@ pub enum Refused {
     QueueFull,
     /// Waited in the queue until the deadline.
     WaitedTooLong,
+}
+
+/// A place among the admitted renders, taken before the scene is parsed;
+/// given back when dropped unless it became a [`Ticket`].
+pub struct Place<'a> {
+    gate: &'a Admission,
+    /// Turned into a ticket (or refused at its deadline): nothing to give back.
+    spent: bool,
 }
 
 /// A render slot, given back when dropped.
@@ -40,35 +52,18 @@ impl Admission {
         }
     }
 
-    /// Takes a slot, waiting in the queue until `deadline` if all are busy.
-    pub fn enter(&self, deadline: Instant) -> Result<Ticket<'_>, Refused> {
+    /// Takes a place for a render, at once or not at all: refused when
+    /// `slots` renders run and `queue` more hold places.
+    pub fn reserve(&self) -> Result<Place<'_>, Refused> {
         let mut counts = self.lock();
-        if counts.running < self.slots {
-            counts.running += 1;
-            return Ok(Ticket(self));
-        }
-        if counts.waiting >= self.queue {
+        if counts.running + counts.waiting >= self.slots + self.queue {
             return Err(Refused::QueueFull);
         }
         counts.waiting += 1;
-        let mut counts = loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if counts.running < self.slots || left.is_zero() {
-                break counts;
-            }
-            counts = self
-                .freed
-                .wait_timeout(counts, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        };
-        counts.waiting -= 1;
-        if counts.running < self.slots {
-            counts.running += 1;
-            Ok(Ticket(self))
-        } else {
-            Err(Refused::WaitedTooLong)
-        }
+        Ok(Place {
+            gate: self,
+            spent: false,
+        })
     }
 
     pub fn counts(&self) -> Counts {
@@ -82,10 +77,104 @@ impl Admission {
     }
 }
 
+impl<'a> Place<'a> {
+    /// Takes a slot, waiting for one until `deadline` if all are busy.
+    pub fn enter(mut self, deadline: Instant) -> Result<Ticket<'a>, Refused> {
+        let gate = self.gate;
+        self.spent = true;
+        let mut counts = gate.lock();
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if counts.running < gate.slots || left.is_zero() {
+                break;
+            }
+            counts = gate
+                .freed
+                .wait_timeout(counts, left)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+        counts.waiting -= 1;
+        if counts.running < gate.slots {
+            counts.running += 1;
+            Ok(Ticket(gate))
+        } else {
+            Err(Refused::WaitedTooLong)
+        }
+    }
+}
+
+impl Drop for Place<'_> {
+    fn drop(&mut self) {
+        if !self.spent {
+            self.gate.lock().waiting -= 1;
+        }
+    }
+}
+
 impl Drop for Ticket<'_> {
     fn drop(&mut self) {
         self.0.lock().running -= 1;
         self.0.freed.notify_one();
+    }
+}
+
+/// The request bodies held in memory at once, in bytes: each body is
+/// charged as its bytes arrive (a client that trickles holds little) and
+/// gives its charge back when dropped.
+pub struct BodyBudget {
+    limit: u64,
+    used: AtomicU64,
+}
+
+/// What one body has been charged; given back when dropped.
+pub struct Charge<'a> {
+    budget: &'a BodyBudget,
+    bytes: u64,
+}
+
+impl BodyBudget {
+    pub fn new(limit: u64) -> Self {
+        BodyBudget {
+            limit,
+            used: AtomicU64::new(0),
+        }
+    }
+
+    /// An empty charge, to grow as a body arrives.
+    pub fn charge(&self) -> Charge<'_> {
+        Charge {
+            budget: self,
+            bytes: 0,
+        }
+    }
+
+    pub fn used(&self) -> u64 {
+        self.used.load(Ordering::Relaxed)
+    }
+}
+
+impl Charge<'_> {
+    /// Charges `bytes` more; `false` (and nothing charged) if the budget
+    /// cannot take them.
+    pub fn grow(&mut self, bytes: u64) -> bool {
+        let budget = self.budget;
+        let taken = budget
+            .used
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |used| {
+                used.checked_add(bytes)
+                    .filter(|&total| total <= budget.limit)
+            });
+        if taken.is_ok() {
+            self.bytes += bytes;
+        }
+        taken.is_ok()
+    }
+}
+
+impl Drop for Charge<'_> {
+    fn drop(&mut self) {
+        self.budget.used.fetch_sub(self.bytes, Ordering::Relaxed);
     }
 }
 
@@ -94,11 +183,15 @@ mod tests {
     use super::*;
     use std::time::Duration;
 
+    fn enter(gate: &Admission, deadline: Instant) -> Result<Ticket<'_>, Refused> {
+        gate.reserve()?.enter(deadline)
+    }
+
     #[test]
     fn admits_slots_then_queues_then_refuses() {
         let gate = Admission::new(1, 1);
         let soon = || Instant::now() + Duration::from_millis(50);
-        let first = gate.enter(soon()).unwrap();
+        let first = enter(&gate, soon()).unwrap();
         assert_eq!(
             gate.counts(),
             Counts {
@@ -107,14 +200,12 @@ mod tests {
             }
         );
         std::thread::scope(|s| {
-            let waiter = s.spawn(|| {
-                gate.enter(Instant::now() + Duration::from_secs(10))
-                    .map(|_| ())
-            });
+            let waiter =
+                s.spawn(|| enter(&gate, Instant::now() + Duration::from_secs(10)).map(|_| ()));
             while gate.counts().waiting == 0 {
                 std::thread::yield_now();
             }
-            assert_eq!(gate.enter(soon()).err(), Some(Refused::QueueFull));
+            assert_eq!(enter(&gate, soon()).err(), Some(Refused::QueueFull));
             drop(first);
             assert_eq!(waiter.join().unwrap(), Ok(()));
         });
@@ -122,11 +213,31 @@ mod tests {
     }
 
     #[test]
+    fn a_place_counts_against_the_queue_until_dropped() {
+        let gate = Admission::new(1, 1);
+        let parsing = gate.reserve().unwrap();
+        let second = gate.reserve().unwrap();
+        assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
+        drop(parsing);
+        assert_eq!(gate.counts().waiting, 1);
+        let ticket = second.enter(Instant::now()).unwrap();
+        assert_eq!(
+            gate.counts(),
+            Counts {
+                running: 1,
+                waiting: 0
+            }
+        );
+        drop(ticket);
+        assert_eq!(gate.counts(), Counts::default());
+    }
+
+    #[test]
     fn a_queued_render_gives_up_at_its_deadline() {
         let gate = Admission::new(1, 4);
-        let _held = gate.enter(Instant::now()).unwrap();
+        let _held = enter(&gate, Instant::now()).unwrap();
         let started = Instant::now();
-        let refused = gate.enter(started + Duration::from_millis(30)).err();
+        let refused = enter(&gate, started + Duration::from_millis(30)).err();
         assert_eq!(refused, Some(Refused::WaitedTooLong));
         assert!(started.elapsed() >= Duration::from_millis(30));
         assert_eq!(
@@ -136,5 +247,21 @@ mod tests {
                 waiting: 0
             }
         );
+    }
+
+    #[test]
+    fn bodies_are_charged_up_to_the_budget_and_give_it_back() {
+        let budget = BodyBudget::new(100);
+        let mut a = budget.charge();
+        assert!(a.grow(60));
+        let mut b = budget.charge();
+        assert!(!b.grow(41));
+        assert!(b.grow(40));
+        assert_eq!(budget.used(), 100);
+        drop(a);
+        assert_eq!(budget.used(), 40);
+        assert!(b.grow(60));
+        drop(b);
+        assert_eq!(budget.used(), 0);
     }
 }

@@ -3,10 +3,12 @@
 
 use super::error::ApiError;
 use super::http::{self, BodyFraming, Connection, ReadError, RequestHead, Response};
+use super::registry::Slot;
 use super::routes;
 use super::State;
 use std::io::Write;
 use std::net::TcpStream;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// How one request ended.
@@ -17,17 +19,19 @@ enum Step {
     Gone,
 }
 
-pub fn serve(state: &State, stream: TcpStream, accepted: Instant) {
+/// Serves requests on one connection until it closes, times out, or the
+/// server stops. `slot` is the connection's place among the open ones.
+pub fn serve(state: &State, slot: &Slot, stream: Arc<TcpStream>, accepted: Instant) {
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(state.config.write_timeout));
     let mut conn = Connection::new(stream, accepted);
-    let pressure = || state.connections_waiting() || state.stopping();
-    loop {
-        let head = match conn.read_head(&state.config.timeouts(), &pressure) {
+    let timeouts = state.config.timeouts();
+    while slot.await_request() {
+        let head = match conn.read_head(&timeouts) {
             Ok(head) => head,
-            Err(error) => return refuse(state, &mut conn, error),
+            Err(error) => return refuse(state, &conn, error),
         };
-        if !answer(state, &mut conn, &head) {
+        if !answer(state, slot, &mut conn, &head) {
             return;
         }
         conn.request_done();
@@ -36,7 +40,7 @@ pub fn serve(state: &State, stream: TcpStream, accepted: Instant) {
 
 /// No request could be read: say why, if there is anyone to tell, in plain
 /// text (there are no headers to ask for JSON), and close.
-fn refuse(state: &State, conn: &mut Connection, error: ReadError) {
+fn refuse(state: &State, conn: &Connection, error: ReadError) {
     let error = match error {
         ReadError::Closed | ReadError::Io => return,
         ReadError::Stalled => {
@@ -52,17 +56,18 @@ fn refuse(state: &State, conn: &mut Connection, error: ReadError) {
             ),
         ),
         ReadError::Malformed(why) => ApiError::new(400, "bad_request", why),
+        ReadError::OverBudget => busy(),
     };
     state.metrics.request("other", error.status);
     let _ = error
         .into_response(false)
-        .write_to(&mut conn.stream, false, false);
+        .write_to(&conn.stream, false, false);
 }
 
 /// Answers one request; whether the connection stays open for the next.
-fn answer(state: &State, conn: &mut Connection, head: &RequestHead) -> bool {
+fn answer(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead) -> bool {
     let route = routes::label(&head.path);
-    match handle(state, conn, head) {
+    match handle(state, slot, conn, head) {
         Step::Gone => {
             // 499: nginx's code for "client closed the request".
             state.metrics.request(route, 499);
@@ -71,14 +76,14 @@ fn answer(state: &State, conn: &mut Connection, head: &RequestHead) -> bool {
         Step::Reply { response, keep } => {
             state.metrics.request(route, response.status);
             let keep = keep && head.wants_keep_alive() && !state.stopping();
-            let written = response.write_to(&mut conn.stream, head.method == "HEAD", keep);
+            let written = response.write_to(&conn.stream, head.method == "HEAD", keep);
             written.is_ok() && keep
         }
     }
 }
 
 /// Reads the body the head announces, then routes the request.
-fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
+fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead) -> Step {
     let json = head.accepts_json();
     let fail = |error: ApiError, keep: bool| Step::Reply {
         response: error.into_response(json),
@@ -133,11 +138,19 @@ fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
         );
     }
     let wants_continue = length > 0 && head.expects_continue() && !conn.has_pending();
-    if wants_continue && conn.stream.write_all(http::CONTINUE).is_err() {
+    if wants_continue && (&*conn.stream).write_all(http::CONTINUE).is_err() {
         return Step::Gone;
     }
-    let body = match conn.read_body(length as usize, state.config.body_timeout) {
-        Ok(body) => body,
+    // Only a scene is kept; any other body is read and thrown away.
+    let (length, timeout) = (length as usize, state.config.body_timeout);
+    let mut charge = state.bodies.charge();
+    let received = if routes::takes_scene(head) {
+        conn.read_body(length, timeout, &mut charge).map(Some)
+    } else {
+        conn.discard_body(length, timeout).map(|()| None)
+    };
+    let scene = match received {
+        Ok(scene) => scene.map(|text| (text, charge)),
         Err(ReadError::Stalled) => {
             return fail(
                 ApiError::new(
@@ -148,8 +161,10 @@ fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
                 false,
             )
         }
+        Err(ReadError::OverBudget) => return fail(busy(), true),
         Err(_) => return Step::Gone,
     };
+    slot.request_received();
     if head.minor_version >= 1 && head.header("host").is_none() {
         return fail(
             ApiError::new(
@@ -160,7 +175,7 @@ fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
             true,
         );
     }
-    match routes::dispatch(state, conn, head, &body) {
+    match routes::dispatch(state, conn, head, scene) {
         Ok(Some(response)) => Step::Reply {
             response,
             keep: true,
@@ -168,4 +183,8 @@ fn handle(state: &State, conn: &mut Connection, head: &RequestHead) -> Step {
         Ok(None) => Step::Gone,
         Err(error) => fail(error, true),
     }
+}
+
+fn busy() -> ApiError {
+    ApiError::busy(crate::limits::RETRY_AFTER_S)
 }

@@ -2,33 +2,41 @@
 //! deadlines, and writing a response. Framing only; what a request means is
 //! decided in `routes`.
 
+use super::admission::Charge;
 use crate::limits;
 use std::fmt::Write as _;
 use std::io::{self, Read, Write};
 use std::net::TcpStream;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// A socket read never blocks longer than this, so a handler notices a
-/// deadline, pressure from waiting connections, or shutdown in good time.
-const READ_SLICE: Duration = Duration::from_millis(250);
-/// Bytes asked of the socket per read.
+/// Bytes asked of the socket per read of a head, or of a discarded body.
 const READ_CHUNK: usize = 4096;
+/// A body's buffer (and its charge against the body budget) starts at this
+/// size and doubles as its bytes arrive, so it is never more than twice
+/// what arrived (plus this) and a large body is moved only a few times.
+const BODY_CHUNK: usize = 64 * 1024;
+/// The shortest socket read timeout (std refuses zero, which to the OS
+/// means none at all).
+const MIN_READ_TIMEOUT: Duration = Duration::from_millis(1);
 
-/// How long each phase of a request may take.
+/// How long each phase of a request may take. Each is a deadline on the
+/// phase's whole time, not on one read: a client that trickles a byte at a
+/// time is cut off just the same. A read blocks with the time left as its
+/// socket timeout, so a waiting connection costs no CPU.
 #[derive(Clone, Copy, Debug)]
 pub struct Timeouts {
-    /// Between requests on a kept-alive connection.
+    /// From the end of the previous response (or the accept) to the first
+    /// byte of the next request.
     pub idle: Duration,
     /// From the first byte of a request to the end of its head.
     pub head: Duration,
-    /// The head (and idle) budget while other connections wait for a handler.
-    pub pressured: Duration,
 }
 
 /// Why no request could be read.
 #[derive(Debug)]
 pub enum ReadError {
-    /// The client closed the connection, went idle, or the server is
+    /// The client closed the connection or went idle, or the server is
     /// stopping, between requests: close without a word.
     Closed,
     /// The client started a request and stalled (408).
@@ -38,6 +46,9 @@ pub enum ReadError {
     HeadTooLarge,
     /// Not HTTP/1.x (400).
     Malformed(String),
+    /// The body would have taken the bodies held in memory past their
+    /// budget; it was read and thrown away (503).
+    OverBudget,
     /// The connection failed (reset, or a socket error).
     Io,
 }
@@ -134,7 +145,9 @@ impl RequestHead {
 /// (the start of a body, or a pipelined next request). The buffer never
 /// holds more than a head's worth plus one read.
 pub struct Connection {
-    pub stream: TcpStream,
+    /// Shared with the registry of open connections, which shuts its
+    /// reading side down when the server stops.
+    pub stream: Arc<TcpStream>,
     pending: Vec<u8>,
     /// Since when the connection has been ready for its next request: its
     /// accept, then the end of each response.
@@ -142,7 +155,7 @@ pub struct Connection {
 }
 
 impl Connection {
-    pub fn new(stream: TcpStream, accepted: Instant) -> Self {
+    pub fn new(stream: Arc<TcpStream>, accepted: Instant) -> Self {
         Connection {
             stream,
             pending: Vec::new(),
@@ -155,17 +168,11 @@ impl Connection {
         self.ready_since = Instant::now();
     }
 
-    /// Reads the next request head. `pressure()` is asked between reads:
-    /// while it holds, the request must be complete within
-    /// `timeouts.pressured` of the connection becoming ready (its accept, or
-    /// the previous response), so clients that trickle their heads or sit
-    /// idle cannot hold the handlers while others wait. What already arrived
-    /// is always read once before that judgement.
-    pub fn read_head(
-        &mut self,
-        timeouts: &Timeouts,
-        pressure: &dyn Fn() -> bool,
-    ) -> Result<RequestHead, ReadError> {
+    /// Reads the next request head: its first byte within `timeouts.idle`
+    /// of the connection becoming ready (its accept, or the previous
+    /// response), the rest within `timeouts.head` of the first byte. What
+    /// already arrived is always read once before a deadline is judged.
+    pub fn read_head(&mut self, timeouts: &Timeouts) -> Result<RequestHead, ReadError> {
         let mut head_started = (!self.pending.is_empty()).then(Instant::now);
         let mut read_once = false;
         loop {
@@ -174,13 +181,10 @@ impl Connection {
                     return Ok(head);
                 }
             }
-            let mut deadline = match head_started {
+            let deadline = match head_started {
                 None => self.ready_since + timeouts.idle,
                 Some(t) => t + timeouts.head,
             };
-            if pressure() {
-                deadline = deadline.min(self.ready_since + timeouts.pressured);
-            }
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() && read_once {
                 return Err(match head_started {
@@ -189,7 +193,7 @@ impl Connection {
                 });
             }
             read_once = true;
-            match self.read_some(left.min(READ_SLICE)) {
+            match self.read_some(left) {
                 Ok(0) => return Err(ReadError::Closed),
                 Ok(_) => {
                     head_started.get_or_insert_with(Instant::now);
@@ -223,29 +227,76 @@ impl Connection {
         }
     }
 
-    /// Reads exactly `len` body bytes within `timeout`.
-    pub fn read_body(&mut self, len: usize, timeout: Duration) -> Result<Vec<u8>, ReadError> {
+    /// Reads exactly `len` body bytes within `timeout` (of the whole
+    /// body). The buffer grows, and `charge` with it, only as bytes arrive;
+    /// if the budget cannot take them, the rest of the body is thrown away.
+    pub fn read_body(
+        &mut self,
+        len: usize,
+        timeout: Duration,
+        charge: &mut Charge,
+    ) -> Result<Vec<u8>, ReadError> {
         let deadline = Instant::now() + timeout;
+        let mut body = Vec::new();
+        let mut filled = 0;
+        while filled < len {
+            if filled == body.len() {
+                let more = (len - filled).min(filled.max(BODY_CHUNK));
+                if !charge.grow(more as u64) {
+                    drop(body);
+                    self.discard(len - filled, deadline)?;
+                    return Err(ReadError::OverBudget);
+                }
+                body.reserve_exact(more);
+                body.resize(filled + more, 0);
+            }
+            if !self.pending.is_empty() {
+                let n = self.pending.len().min(body.len() - filled);
+                body[filled..filled + n].copy_from_slice(&self.pending[..n]);
+                self.pending.drain(..n);
+                filled += n;
+                continue;
+            }
+            let end = body.len();
+            filled += self.read_before(deadline, &mut body[filled..end])?;
+        }
+        Ok(body)
+    }
+
+    /// Reads and throws away `len` body bytes within `timeout`: a body no
+    /// route needs is never held.
+    pub fn discard_body(&mut self, len: usize, timeout: Duration) -> Result<(), ReadError> {
+        self.discard(len, Instant::now() + timeout)
+    }
+
+    fn discard(&mut self, len: usize, deadline: Instant) -> Result<(), ReadError> {
         let from_pending = len.min(self.pending.len());
-        let mut body: Vec<u8> = self.pending.drain(..from_pending).collect();
-        body.reserve_exact(len - body.len());
-        let mut chunk = [0u8; READ_CHUNK * 4];
-        while body.len() < len {
+        self.pending.drain(..from_pending);
+        let mut left = len - from_pending;
+        let mut chunk = [0u8; READ_CHUNK];
+        while left > 0 {
+            let want = left.min(chunk.len());
+            left -= self.read_before(deadline, &mut chunk[..want])?;
+        }
+        Ok(())
+    }
+
+    /// One read of at most `buf.len()` bytes (at least one) before `deadline`.
+    fn read_before(&mut self, deadline: Instant, buf: &mut [u8]) -> Result<usize, ReadError> {
+        loop {
             let Some(left) = deadline.checked_duration_since(Instant::now()) else {
                 return Err(ReadError::Stalled);
             };
             self.stream
-                .set_read_timeout(Some(left.min(READ_SLICE).max(Duration::from_millis(1))))
+                .set_read_timeout(Some(left.max(MIN_READ_TIMEOUT)))
                 .map_err(|_| ReadError::Io)?;
-            let want = (len - body.len()).min(chunk.len());
-            match self.stream.read(&mut chunk[..want]) {
+            match (&*self.stream).read(buf) {
                 Ok(0) => return Err(ReadError::Closed),
-                Ok(n) => body.extend_from_slice(&chunk[..n]),
+                Ok(n) => return Ok(n),
                 Err(e) if is_timeout(&e) => {}
                 Err(_) => return Err(ReadError::Io),
             }
         }
-        Ok(body)
     }
 
     /// Whether body bytes have already arrived (then `100 Continue` is moot).
@@ -255,9 +306,9 @@ impl Connection {
 
     fn read_some(&mut self, timeout: Duration) -> io::Result<usize> {
         self.stream
-            .set_read_timeout(Some(timeout.max(Duration::from_millis(1))))?;
+            .set_read_timeout(Some(timeout.max(MIN_READ_TIMEOUT)))?;
         let mut chunk = [0u8; READ_CHUNK];
-        let n = self.stream.read(&mut chunk)?;
+        let n = (&*self.stream).read(&mut chunk)?;
         self.pending.extend_from_slice(&chunk[..n]);
         Ok(n)
     }
@@ -358,7 +409,7 @@ impl Response {
 
     pub fn write_to(
         &self,
-        stream: &mut TcpStream,
+        mut stream: &TcpStream,
         head_only: bool,
         keep_alive: bool,
     ) -> io::Result<()> {

@@ -53,8 +53,9 @@ impl Metrics {
         self.open_connections.fetch_sub(1, Ordering::Relaxed);
     }
 
-    /// The Prometheus text exposition, with the admission gate's current counts.
-    pub fn render_text(&self, admission: Counts) -> String {
+    /// The Prometheus text exposition, with the admission gate's current
+    /// counts and the request body bytes held now.
+    pub fn render_text(&self, admission: Counts, body_bytes: u64) -> String {
         let mut out = String::new();
         let name = "voxtrace_requests_total";
         let _ = writeln!(
@@ -86,7 +87,7 @@ impl Metrics {
             (
                 "voxtrace_render_queue_depth",
                 "gauge",
-                "Renders waiting for a slot.",
+                "Renders admitted and not running yet (scene being parsed, or waiting for a slot).",
                 admission.waiting as u64,
             ),
             (
@@ -94,6 +95,12 @@ impl Metrics {
                 "gauge",
                 "Renders running now.",
                 admission.running as u64,
+            ),
+            (
+                "voxtrace_body_bytes",
+                "gauge",
+                "Request body bytes held in memory now.",
+                body_bytes,
             ),
             (
                 "voxtrace_open_connections",
@@ -139,15 +146,19 @@ mod tests {
         m.request("/render", 503);
         m.render(Duration::from_millis(20), 1000);
         m.render(Duration::from_secs(60), 5);
-        let text = m.render_text(Counts {
-            running: 1,
-            waiting: 3,
-        });
+        let text = m.render_text(
+            Counts {
+                running: 1,
+                waiting: 3,
+            },
+            4096,
+        );
         assert!(text.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 2\n"));
         assert!(text.contains("voxtrace_requests_total{route=\"/render\",status=\"503\"} 1\n"));
         assert!(text.contains("voxtrace_rays_total 1005\n"));
         assert!(text.contains("voxtrace_render_queue_depth 3\n"));
         assert!(text.contains("voxtrace_renders_in_flight 1\n"));
+        assert!(text.contains("voxtrace_body_bytes 4096\n"));
         assert!(text.contains("voxtrace_render_seconds_bucket{le=\"0.01\"} 0\n"));
         assert!(text.contains("voxtrace_render_seconds_bucket{le=\"0.025\"} 1\n"));
         assert!(text.contains("voxtrace_render_seconds_bucket{le=\"30\"} 1\n"));

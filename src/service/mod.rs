@@ -1,11 +1,14 @@
 //! `voxtrace serve`: the renderer behind HTTP/1.1, on `std::net` alone.
 //!
-//! One acceptor thread hands connections to a fixed pool of handler threads
-//! through a bounded backlog; a handler reads a request ([`http`]), routes it
-//! ([`routes`]) and, for `POST /render`, takes a slot from the bounded
-//! admission gate ([`admission`]) before the render runs on the shared rayon
-//! pool. Every wait has a deadline and every buffer a bound, so no client can
-//! make the service grow without limit.
+//! Reading requests and rendering are kept apart. One acceptor thread gives
+//! each connection, up to a cap ([`registry`]), its own reader thread with a
+//! small stack; it reads requests under deadlines ([`http`]) and routes them
+//! ([`routes`]). A render then takes a slot from the bounded admission gate
+//! ([`admission`]), a few renders at once and a bounded queue, before it runs
+//! on the shared rayon pool. A slow or idle client so costs one parked thread
+//! until its deadline, never a place another client's render waits for.
+//! Every wait has a deadline and every buffer a bound, so no client can make
+//! the service grow without limit.
 
 mod admission;
 mod assets;
@@ -13,35 +16,37 @@ mod connection;
 mod error;
 mod http;
 mod metrics;
+mod registry;
 mod render_route;
 mod routes;
 
 use crate::limits;
-use admission::Admission;
+use admission::{Admission, BodyBudget};
 use metrics::Metrics;
-use std::io::{self, Write};
+use registry::Registry;
+use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::{self, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-/// Stack of a connection handler: parsing, routing and encoding only; the
-/// deep work runs on the render pool's threads.
-const HANDLER_STACK_BYTES: usize = 512 * 1024;
+/// Stack of a connection's reader thread: reading, parsing the scene,
+/// routing and encoding, none of it recursive; the render runs on the render
+/// pool's threads. Only the pages a thread touches become resident.
+const CONNECTION_STACK_BYTES: usize = 256 * 1024;
 
 /// Everything the service can be told; each field has a default in
 /// [`limits`] and a flag of `voxtrace serve`.
 #[derive(Clone, Debug)]
 pub struct ServiceConfig {
     pub addr: String,
-    pub workers: usize,
-    pub backlog: usize,
+    pub max_connections: usize,
     pub concurrent_renders: usize,
     pub queue: usize,
     pub max_body: u64,
+    pub body_memory: u64,
     pub max_pixels: u64,
     pub max_samples: u64,
     pub max_spheres: usize,
@@ -59,11 +64,11 @@ impl Default for ServiceConfig {
         let ms = Duration::from_millis;
         ServiceConfig {
             addr: limits::DEFAULT_ADDR.to_owned(),
-            workers: limits::DEFAULT_WORKERS,
-            backlog: limits::DEFAULT_BACKLOG,
+            max_connections: limits::DEFAULT_MAX_CONNECTIONS,
             concurrent_renders: limits::DEFAULT_CONCURRENT_RENDERS,
             queue: limits::DEFAULT_QUEUE,
             max_body: limits::DEFAULT_MAX_BODY,
+            body_memory: limits::DEFAULT_BODY_MEMORY,
             max_pixels: limits::DEFAULT_MAX_PIXELS,
             max_samples: limits::DEFAULT_MAX_SAMPLES,
             max_spheres: limits::DEFAULT_MAX_SERVICE_SPHERES,
@@ -79,22 +84,23 @@ impl Default for ServiceConfig {
 
 impl ServiceConfig {
     fn timeouts(&self) -> http::Timeouts {
-        let pressured = Duration::from_millis(limits::PRESSURED_HEAD_TIMEOUT_MS);
         http::Timeouts {
             idle: self.idle_timeout,
             head: self.head_timeout,
-            pressured: pressured.min(self.head_timeout),
         }
     }
 
     fn check(&self) -> io::Result<()> {
         let invalid =
             |what: &str| Err(io::Error::new(io::ErrorKind::InvalidInput, what.to_owned()));
-        if self.workers == 0 {
-            return invalid("--workers must be at least 1");
+        if self.max_connections == 0 {
+            return invalid("--max-connections must be at least 1");
         }
         if self.concurrent_renders == 0 {
             return invalid("--renders must be at least 1");
+        }
+        if self.body_memory < self.max_body {
+            return invalid("--body-memory must be at least --max-body");
         }
         if self.threads == Some(0) {
             return invalid("--threads must be at least 1");
@@ -103,22 +109,18 @@ impl ServiceConfig {
     }
 }
 
-/// What every handler shares.
+/// What every connection shares.
 pub(crate) struct State {
     config: ServiceConfig,
     metrics: Metrics,
     admission: Admission,
+    bodies: BodyBudget,
     pool: rayon::ThreadPool,
-    /// Accepted connections not yet taken by a handler.
-    backlog_len: AtomicUsize,
+    connections: Registry,
     stopping: AtomicBool,
 }
 
 impl State {
-    fn connections_waiting(&self) -> bool {
-        self.backlog_len.load(Ordering::Relaxed) > 0
-    }
-
     fn stopping(&self) -> bool {
         self.stopping.load(Ordering::Relaxed)
     }
@@ -149,10 +151,11 @@ impl Server {
             .map_err(io::Error::other)?;
         let state = State {
             admission: Admission::new(config.concurrent_renders, config.queue),
+            bodies: BodyBudget::new(config.body_memory),
             config,
             metrics: Metrics::default(),
             pool,
-            backlog_len: AtomicUsize::new(0),
+            connections: Registry::default(),
             stopping: AtomicBool::new(false),
         };
         Ok(Server {
@@ -166,50 +169,46 @@ impl Server {
         self.listener.local_addr()
     }
 
-    /// Serves until stopped through a [`ServerHandle`] (from `spawn`), or forever.
+    /// Serves until stopped through a [`ServerHandle`] (from `spawn`), or
+    /// forever. When stopped, waits for every connection to close.
     pub fn run(self) -> io::Result<()> {
-        let (sender, receiver) = mpsc::sync_channel::<Accepted>(self.state.config.backlog);
-        let receiver = Arc::new(Mutex::new(receiver));
-        let handlers = (0..self.state.config.workers)
-            .map(|i| {
-                let (state, receiver) = (Arc::clone(&self.state), Arc::clone(&receiver));
-                thread::Builder::new()
-                    .name(format!("voxtrace-conn-{i}"))
-                    .stack_size(HANDLER_STACK_BYTES)
-                    .spawn(move || handle_connections(&state, &receiver))
-            })
-            .collect::<io::Result<Vec<_>>>()?;
-        self.accept(&sender);
-        drop(sender);
-        for handler in handlers {
-            let _ = handler.join();
-        }
-        Ok(())
-    }
-
-    fn accept(&self, sender: &SyncSender<Accepted>) {
         let state = &self.state;
         for stream in self.listener.incoming() {
             if state.stopping() {
-                return;
+                break;
             }
-            let stream = match stream {
-                Ok(stream) => stream,
-                Err(_) => {
-                    // Out of file descriptors or a connection reset before
-                    // accept: wait a moment rather than spin.
-                    thread::sleep(Duration::from_millis(10));
-                    continue;
-                }
-            };
-            state.metrics.connection_opened();
-            state.backlog_len.fetch_add(1, Ordering::Relaxed);
-            if let Err(TrySendError::Full((stream, _)) | TrySendError::Disconnected((stream, _))) =
-                sender.try_send((stream, Instant::now()))
-            {
-                state.backlog_len.fetch_sub(1, Ordering::Relaxed);
-                turn_away(state, stream);
+            match stream {
+                Ok(stream) => self.admit(stream),
+                // Out of file descriptors or a connection reset before
+                // accept: wait a moment rather than spin.
+                Err(_) => thread::sleep(Duration::from_millis(10)),
             }
+        }
+        state.connections.stop();
+        Ok(())
+    }
+
+    /// Gives an accepted connection its reader thread, or turns it away
+    /// when the cap is reached (or no thread can be started).
+    fn admit(&self, stream: TcpStream) {
+        let state = &self.state;
+        let accepted = Instant::now();
+        state.metrics.connection_opened();
+        let stream = Arc::new(stream);
+        let cap = state.config.max_connections;
+        let Ok(id) = state.connections.open(Arc::clone(&stream), cap) else {
+            return turn_away(state, &stream);
+        };
+        let shared = Arc::clone(state);
+        let reader = Arc::clone(&stream);
+        let spawned = thread::Builder::new()
+            .name("voxtrace-conn".into())
+            .stack_size(CONNECTION_STACK_BYTES)
+            .spawn(move || serve_connection(&shared, id, reader, accepted));
+        if spawned.is_err() {
+            // The thread never ran: end the connection's registration here.
+            drop(state.connections.slot(id));
+            turn_away(state, &stream);
         }
     }
 
@@ -228,37 +227,29 @@ impl Server {
     }
 }
 
-/// A connection and when it was accepted.
-type Accepted = (TcpStream, Instant);
-
-fn handle_connections(state: &State, receiver: &Mutex<Receiver<Accepted>>) {
-    loop {
-        let next = receiver
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .recv();
-        let Ok((stream, accepted)) = next else { return };
-        state.backlog_len.fetch_sub(1, Ordering::Relaxed);
-        // A bug that panics while serving one connection must not shrink the
-        // fixed pool: the panic ends that connection only. Admission tickets
-        // and counters are released by their destructors during the unwind.
-        let served = panic::catch_unwind(AssertUnwindSafe(|| {
-            connection::serve(state, stream, accepted)
-        }));
-        if served.is_err() {
-            state.metrics.request("panic", 500);
-        }
-        state.metrics.connection_closed();
+/// One connection's reader thread, from accept to close.
+fn serve_connection(state: &State, id: u64, stream: Arc<TcpStream>, accepted: Instant) {
+    let slot = state.connections.slot(id);
+    // A bug that panics while serving one connection ends that connection
+    // only. Its registration, admission ticket and counters are released by
+    // their destructors during the unwind.
+    let served = panic::catch_unwind(AssertUnwindSafe(|| {
+        connection::serve(state, &slot, stream, accepted)
+    }));
+    if served.is_err() {
+        state.metrics.request("panic", 500);
     }
+    drop(slot);
+    state.metrics.connection_closed();
 }
 
-/// The backlog is full: say so and close, without tying up a handler.
-fn turn_away(state: &State, mut stream: TcpStream) {
+/// Too many connections are open: say so and close, at once.
+fn turn_away(state: &State, stream: &TcpStream) {
     let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
-    let response = error::ApiError::new(503, "busy", "too many connections are waiting")
+    let response = error::ApiError::new(503, "busy", "too many connections are open")
         .with_header("Retry-After", limits::RETRY_AFTER_S.to_string())
         .into_response(false);
-    let _ = stream.write_all(&response.to_bytes(false, false));
+    let _ = response.write_to(stream, false, false);
     state.metrics.request("connection", 503);
     state.metrics.connection_closed();
 }
@@ -275,7 +266,8 @@ impl ServerHandle {
         self.addr
     }
 
-    /// Stops accepting, lets handlers finish their current request, and waits for them.
+    /// Stops accepting, closes the connections waiting for a request, lets
+    /// the requests being handled finish, and waits for every connection.
     pub fn stop(mut self) {
         self.shut_down();
     }

@@ -1,5 +1,6 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
+use super::admission::Charge;
 use super::error::ApiError;
 use super::http::{Connection, Response};
 use super::{ServiceConfig, State};
@@ -125,24 +126,35 @@ fn download_name(scene: &Scene, format: Format) -> String {
     format!("{stem}.{}", format.extension())
 }
 
-/// Renders the body's scene. `None` means the client left while the render
-/// waited, so there is nobody to answer.
+/// Renders the scene of `body`, which `charge` holds against the body
+/// budget. `None` means the client left while the render waited, so there
+/// is nobody to answer.
 pub fn handle(
     state: &State,
     conn: &Connection,
     query: &str,
-    body: &[u8],
+    body: Vec<u8>,
+    charge: Charge,
 ) -> Result<Option<Response>, ApiError> {
     let config = &state.config;
+    let busy = |_| ApiError::busy(limits::RETRY_AFTER_S);
     let query = RenderQuery::parse(query)?;
-    let scene = scene::parse(body).map_err(|e| ApiError::scene(&e))?;
+    // A place is taken before parsing, so the parsed scenes held at once
+    // are bounded by the queue as the bodies are by their budget.
+    let place = state.admission.reserve().map_err(busy)?;
+    // The parser is parallel: it runs on the render pool too, so the
+    // service never starts rayon's global pool beside its own (which would
+    // put twice as many busy threads as `--threads` on the cores).
+    let scene = state
+        .pool
+        .install(|| scene::parse(&body))
+        .map_err(|e| ApiError::scene(&e))?;
+    drop((body, charge));
     check_limits(&scene, &query, config)?;
 
-    let queued_until = Instant::now() + config.render_timeout;
-    let ticket = state
-        .admission
-        .enter(queued_until)
-        .map_err(|_| ApiError::busy(limits::RETRY_AFTER_S))?;
+    let ticket = place
+        .enter(Instant::now() + config.render_timeout)
+        .map_err(busy)?;
     if conn.peer_closed() {
         return Ok(None);
     }

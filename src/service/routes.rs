@@ -1,5 +1,6 @@
 //! Which handler answers which method and path.
 
+use super::admission::Charge;
 use super::assets;
 use super::error::ApiError;
 use super::http::{Connection, RequestHead, Response};
@@ -21,20 +22,26 @@ pub fn label(path: &str) -> &'static str {
     }
 }
 
-/// Answers one request whose body has been read. `Ok(None)`: the client
-/// left before there was anything to say.
+/// Whether the request carries a scene, the only body any route reads.
+pub fn takes_scene(head: &RequestHead) -> bool {
+    head.method == "POST" && head.path == "/render"
+}
+
+/// Answers one request whose body has been received: `scene` holds it
+/// (with its charge against the body budget) when [`takes_scene`].
+/// `Ok(None)`: the client left before there was anything to say.
 pub fn dispatch(
     state: &State,
     conn: &Connection,
     head: &RequestHead,
-    body: &[u8],
+    scene: Option<(Vec<u8>, Charge)>,
 ) -> Result<Option<Response>, ApiError> {
     let method = head.method.as_str();
     let path = head.path.as_str();
     if path == "/render" {
-        return match method {
-            "POST" => render_route::handle(state, conn, &head.query, body),
-            _ => Err(ApiError::method_not_allowed(method, "POST")),
+        return match scene {
+            Some((text, charge)) => render_route::handle(state, conn, &head.query, text, charge),
+            None => Err(ApiError::method_not_allowed(method, "POST")),
         };
     }
     let found = get_resource(state, path).ok_or_else(|| ApiError::not_found(path))?;
@@ -52,7 +59,9 @@ fn get_resource(state: &State, path: &str) -> Option<Response> {
         "/metrics" => Response::new(
             200,
             "text/plain; version=0.0.4; charset=utf-8",
-            state.metrics.render_text(state.admission.counts()),
+            state
+                .metrics
+                .render_text(state.admission.counts(), state.bodies.used()),
         ),
         "/scenes" => Response::new(200, "application/json", assets::scene_list_json()),
         _ => {

@@ -656,7 +656,9 @@ fn render_in_process(run: &Run, pool: &rayon::ThreadPool, due: Instant) -> Sampl
             .and_then(|v| v.parse().ok()),
         ..RenderOptions::default()
     };
-    let result = crate::scene::parse(body)
+    // Parsed on the pool too, as the service does.
+    let result = pool
+        .install(|| crate::scene::parse(body))
         .ok()
         .and_then(|scene| {
             pool.install(|| render_scene(&scene, &options, &|_| {}))
