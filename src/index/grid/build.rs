@@ -381,12 +381,9 @@ fn sorted_cells<K: PairKey, C: Iterator<Item = [i64; 3]>>(
         .flat_map_iter(|(local, &id)| cells(id).map(move |c| code.pack::<K>(c, local)))
         .collect();
     keys.par_sort_unstable();
-    let pairs = |i: usize| {
-        let (cell, local) = code.unpack(keys[i]);
-        (cell, ids[local])
-    };
-    number_in_cell_order((0..keys.len()).map(|i| pairs(i).1), rank, order);
-    compress(code, keys.len(), pairs, rank)
+    let id_of = |i: usize| ids[code.unpack(keys[i]).1];
+    number_in_cell_order((0..keys.len()).map(id_of), rank, order);
+    compress(code, keys.len(), |i| code.unpack(keys[i]).0, id_of, rank)
 }
 
 /// Numbers the spheres of sorted (cell, id) pairs in the order they first
@@ -405,24 +402,25 @@ fn number_in_cell_order(ids: impl Iterator<Item = u32>, rank: &mut [u32], order:
     }
 }
 
-/// From the `len` sorted (packed cell, id) pairs `pair(i)` to the blocks,
+/// From the `len` sorted pairs (packed cell `cell_of(i)`, sphere `id_of(i)`) to the blocks,
 /// the CSR offsets of the occupied cells, and the flat array of the
 /// spheres' numbers (`rank`).
 fn compress(
     code: &PairCode,
     len: usize,
-    pair: impl Fn(usize) -> (u64, u32) + Sync,
+    cell_of: impl Fn(usize) -> u64,
+    id_of: impl Fn(usize) -> u32 + Sync,
     rank: &[u32],
 ) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
     let ids: Vec<u32> = (0..len)
         .into_par_iter()
-        .map(|i| rank[pair(i).1 as usize])
+        .map(|i| rank[id_of(i) as usize])
         .collect();
     let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
     let mut cell_start: Vec<u32> = Vec::new();
     let (mut previous, mut previous_block) = (u64::MAX, u64::MAX);
     for i in 0..len {
-        let (cell, _) = pair(i);
+        let cell = cell_of(i);
         if cell == previous {
             continue;
         }

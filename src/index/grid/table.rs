@@ -9,7 +9,7 @@
 //! probe which of its 64 cells hold anything: that is the coarse occupancy
 //! that lets it skip empty space.
 //!
-//! Open addressing with linear probing, power-of-two capacity, load ≤ 1/2.
+//! Open addressing with linear probing, power-of-two capacity, load ≤ 2/3.
 //! The full key is stored, so a hash collision costs a probe, never a
 //! candidate.
 
@@ -93,7 +93,7 @@ fn mix(mut k: u64) -> u64 {
 impl BlockTable {
     /// A table for `blocks`, whose keys must be distinct.
     pub fn new(blocks: &[(BlockKey, Block)]) -> Self {
-        let capacity = (blocks.len() * 2).next_power_of_two().max(2);
+        let capacity = (blocks.len() * 3).div_ceil(2).next_power_of_two().max(2);
         let mut table = BlockTable {
             slots: vec![EMPTY_SLOT; capacity],
             mask: capacity - 1,
