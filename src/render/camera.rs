@@ -33,19 +33,6 @@ impl PixelSampler {
         )
     }
 
-    /// The mean of `radiance` over the pixel's samples: [`Self::combine`]
-    /// over [`Self::directions`].
-    pub fn average(
-        &self,
-        column: u32,
-        row: u32,
-        mut radiance: impl FnMut(DVec3) -> DVec3,
-    ) -> DVec3 {
-        let mut directions = Vec::with_capacity(self.spp as usize);
-        self.directions(column, row, &mut directions);
-        self.combine(directions.into_iter().map(&mut radiance))
-    }
-
     /// Samples per pixel.
     pub fn spp(&self) -> u32 {
         self.spp
@@ -157,29 +144,33 @@ mod tests {
         assert_eq!(s.direction(0.0, 0.0), DVec3::new(-1.0, 1.0, -1.0));
         assert_eq!(s.direction(2.0, 1.0), DVec3::new(0.0, 0.0, -1.0));
         let mut seen = vec![];
-        s.average(3, 1, |d| {
-            seen.push(d);
-            DVec3::ONE
-        });
+        s.directions(3, 1, &mut seen);
         assert_eq!(seen, vec![DVec3::new(0.5, 0.0, -1.0)]);
+        // One sample is the pixel's colour as it is, unclamped.
+        assert_eq!(s.combine([DVec3::splat(2.0)]), DVec3::splat(2.0));
     }
 
     #[test]
     fn many_samples_stay_inside_the_pixel_and_cover_its_strata() {
         for spp in [4, 16, 5] {
             let s = PixelSampler::new(&camera(), spp);
+            let mut dirs = vec![];
+            s.directions(1, 0, &mut dirs);
             let mut xs = vec![];
-            s.average(1, 0, |d| {
+            for d in dirs {
                 // Pixel 1 spans x in [-0.5, 0), y in (0, 1].
                 assert!((-0.5..0.0).contains(&d.x) && d.y > 0.0 && d.y <= 1.0, "{d}");
                 xs.push(((d.x + 0.5) / 0.5 * spp as f64) as u32);
-                DVec3::ZERO
-            });
+            }
             assert_eq!(xs.len(), spp as usize);
             if spp == 5 {
                 xs.sort();
                 assert_eq!(xs, vec![0, 1, 2, 3, 4], "one sample per column stratum");
             }
+            // More samples are each clamped to [0, 1], then averaged.
+            let bright = std::iter::repeat_n(DVec3::splat(3.0), spp as usize - 1);
+            let colour = s.combine(bright.chain([DVec3::ZERO]));
+            assert_eq!(colour, DVec3::splat((spp - 1) as f64 / spp as f64));
         }
     }
 }
