@@ -468,13 +468,10 @@ impl Level {
             } else {
                 (s >> BLOCK_SHIFT << BLOCK_SHIFT).max(last)
             };
-            let layer = Rect::between(
-                &cells.at(&range, delta(entry_plane(s))),
-                &cells.at(&range, delta(entry_plane(layer_end + step))),
-            );
-            let blocks = self.layer_blocks(k, s, layer, empty_space);
+            let mut entry = cells.at(&range, delta(entry_plane(s)));
+            let layer_exit = cells.at(&range, delta(entry_plane(layer_end + step)));
+            let blocks = self.layer_blocks(k, s, Rect::between(&entry, &layer_exit), empty_space);
             if !matches!(blocks, LayerBlocks::Empty) {
-                let mut entry = cells.at(&range, delta(entry_plane(s)));
                 while s * step <= layer_end * step {
                     let leaving = cells.at(&range, delta(entry_plane(s + step)));
                     self.visit_slab(
