@@ -38,7 +38,8 @@
 //! the operation count gives; the property tests check the bound.
 
 use super::table::{
-    block_key, cell_bit, Block, BlockKey, BlockTable, BLOCK_SHIFT, BLOCK_SIDE, MAX_BLOCKS_PER_AXIS,
+    block_key, cell_bit, regions, Block, BlockKey, BlockTable, RegionTable, BLOCK_SHIFT,
+    BLOCK_SIDE, MAX_BLOCKS_PER_AXIS,
 };
 use super::walk::floor_to_int;
 use super::Level;
@@ -288,6 +289,7 @@ fn build_level(
         dims: dims.to_array(),
         slack,
         table: BlockTable::new(&blocks),
+        regions: RegionTable::new(&regions(&blocks)),
         cell_start,
         ids: candidates,
     }

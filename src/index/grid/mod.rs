@@ -22,7 +22,7 @@ use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
 pub use packet::LANES as PACKET_LANES;
 use rayon::prelude::*;
-use table::BlockTable;
+use table::{BlockTable, RegionTable};
 use walk::Ray64;
 
 /// How a ray crosses space no sphere occupies.
@@ -47,6 +47,8 @@ pub struct Level {
     /// spheres may lie before the cell the walk finds it in.
     slack: f64,
     table: BlockTable,
+    /// Which blocks are occupied, 4×4×4 blocks at a time.
+    regions: RegionTable,
     /// Occupied cell i holds `ids[cell_start[i]..cell_start[i + 1]]`.
     cell_start: Vec<u32>,
     ids: Vec<u32>,
@@ -63,7 +65,7 @@ pub struct LevelInfo {
 
 impl Level {
     fn bytes(&self) -> usize {
-        self.table.bytes() + 4 * (self.cell_start.len() + self.ids.len())
+        self.table.bytes() + self.regions.bytes() + 4 * (self.cell_start.len() + self.ids.len())
     }
 
     #[inline(always)]

@@ -24,7 +24,7 @@
 //!   the same order (no fused multiply-adds: Rust does not contract), so every
 //!   lane rounds exactly as the one-ray test does.
 
-use super::table::{block_key, cell_bit, Block, BLOCK_SHIFT};
+use super::table::{block_key, box_mask, cell_bit, Block, BLOCK_SHIFT};
 use super::walk::Ray64;
 use super::{EmptySpace, Level, VoxelHashGrid};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
@@ -145,14 +145,13 @@ impl Packet {
     /// None when the rays share no axis of travel (or one cannot be walked):
     /// those rays go one at a time.
     fn new<R: Real>(origin: V3<R>, dirs: &[V3<R>; LANES]) -> Option<Packet> {
-        let mut rays = Vec::with_capacity(LANES);
-        for &dir in dirs {
-            rays.push(Ray64::new(&Ray::<R>::new(origin, dir))?);
+        let mut rays = [Ray64::new(&Ray::<R>::new(origin, dirs[0]))?; LANES];
+        for (ray, &dir) in rays.iter_mut().zip(dirs).skip(1) {
+            *ray = Ray64::new(&Ray::<R>::new(origin, dir))?;
         }
-        let rays: [Ray64; LANES] = rays.try_into().ok()?;
-        // How steeply the shallowest ray travels along `axis` (0 when some
-        // ray runs parallel to it or the other way).
-        let steepness = |axis: usize| {
+        // How steeply the shallowest ray travels along each axis (0 when
+        // some ray runs parallel to it or the other way).
+        let steepness = [0, 1, 2].map(|axis| {
             let positive = rays[0].d[axis] > 0.0;
             rays.iter()
                 .map(|r| {
@@ -164,12 +163,11 @@ impl Packet {
                     }
                 })
                 .fold(f64::INFINITY, f64::min)
-        };
+        });
         // The steepest axis gives the thinnest slab rectangles.
-        let axis = (0..3).max_by(|&a, &b| steepness(a).total_cmp(&steepness(b)))?;
-        let steepness = steepness(axis);
+        let axis = (0..3).max_by(|&a, &b| steepness[a].total_cmp(&steepness[b]))?;
         let slope = [1, 2].map(|j| rays.each_ref().map(|r| r.d[(axis + j) % 3] / r.d[axis]));
-        (steepness > 0.0).then(|| Packet {
+        (steepness[axis] > 0.0).then(|| Packet {
             step: if rays[0].d[axis] > 0.0 { 1 } else { -1 },
             rays,
             axis,
@@ -211,30 +209,42 @@ struct SlopeRange {
 /// test (sixteen of them) is skipped for one scalar test.
 ///
 /// # Why skipping is exact
-/// Let a be the axis, α the half-angle (every ray direction d has
-/// ∠(a, d) ≤ α), and B the ball of radius ρ (the candidate's `bound`) around
-/// the centre C, seen from the apex O under the half-angle β = asin(ρ/|w|),
-/// w = C − O, when |w| > ρ. A rounded hit at t ≥ 0 lies in B, so its
-/// direction d from O has ∠(d, w) ≤ β, and ∠(a, w) ≤ ∠(a, d) + ∠(d, w) ≤
-/// α + β. Hence ∠(a, w) > α + β rules every ray out. In cosines (α < π/2
-/// and β ≤ π/2, so α + β < π where cos falls):
-/// `a·w < |w|·cos(α + β) = cos α·√(|w|² − ρ²) − sin α·ρ`. The bound ρ holds
-/// the slack, so a rounded hit at t ≥ 0 whose true point lies behind the
-/// apex is inside B too. Only packets with `t_min ≥ 0` get a cone; the
-/// f64 arithmetic here is widened by [`CONE_MARGIN`], far above its rounding.
+/// Let V be the apex, a the unit axis and α the half-angle (every ray
+/// direction d has ∠(a, d) ≤ α), so every point a ray reaches at t ≥ 0 lies
+/// in the cone K = {V + x : ∠(a, x) ≤ α}. A rounded hit lies within ρ (the
+/// candidate's `bound`, which holds the slack) of the centre C, so a sphere
+/// can give a ray a hit only if its ball B(C, ρ) meets K.
+///
+/// Every point within ρ of K lies in the same cone moved back along its
+/// axis, K' with apex U = V − (ρ / sin α)·a: the ball B(V, ρ) lies in K'
+/// (V is on K''s axis at distance ρ / sin α from its apex, which puts it ρ
+/// from K''s surface), and K' + x ⊆ K' for every direction x of K, so
+/// B(V + x, ρ) ⊆ K' for every point V + x of K. With e = C − U and
+/// s = a·e, C lies in K' exactly when s ≥ |e|·cos α, that is when s ≥ 0
+/// and s² ≥ cos²α·|e|²: no square root. A candidate that fails it is
+/// skipped.
+///
+/// Only packets with `t_min ≥ 0` and α ≤ 60° get a cone. There s ≥ |e|/2
+/// for a ball that meets K, and e's terms are at most about 20·|e|, so the
+/// f64 rounding of s, |e|² and the apex is a few units of 1e-15 relative:
+/// [`CONE_MARGIN`] widens the angle and the final comparison far beyond it.
 struct Cone {
     apex: DVec3,
     axis: DVec3,
-    cos: f64,
-    sin: f64,
+    /// 1 / sin α: how far back the apex moves per unit of bound.
+    inv_sin: f64,
+    /// cos²α, lowered by [`CONE_MARGIN`] for the rounding of the test.
+    cos2: f64,
 }
 
 /// Relative widening of the cone's angle and test, against f64 rounding.
 const CONE_MARGIN: f64 = 1e-9;
+/// The widest cone worth a test: cos 60°.
+const MIN_CONE_COS: f64 = 0.5;
 
 impl Cone {
-    /// None when the rays may reach behind the apex or spread over more than
-    /// a hemisphere, where a cone does not pay.
+    /// None when the rays may reach behind the apex or spread too wide for a
+    /// cone to pay.
     fn new(packet: &Packet, t_min: f64) -> Option<Cone> {
         if t_min.is_nan() || t_min < 0.0 {
             return None;
@@ -245,24 +255,20 @@ impl Cone {
             .map(|r| DVec3::from_array(r.d) / r.length);
         let axis = dirs.iter().sum::<DVec3>().try_normalize()?;
         let cos = dirs.iter().map(|d| axis.dot(*d)).fold(1.0, f64::min) - CONE_MARGIN;
-        (cos > 0.0).then(|| Cone {
+        (cos >= MIN_CONE_COS).then(|| Cone {
             apex: DVec3::from_array(packet.rays[0].o),
             axis,
-            cos,
-            sin: (1.0 - cos * cos).sqrt(),
+            inv_sin: 1.0 / (1.0 - cos * cos).sqrt(),
+            cos2: cos * cos * (1.0 - CONE_MARGIN),
         })
     }
 
     /// False only when no ray of the cone comes within `bound` of `center`.
     #[inline(always)]
     fn may_hit(&self, center: DVec3, bound: f64) -> bool {
-        let w = center - self.apex;
-        let (l2, r2) = (w.length_squared(), bound * bound);
-        if l2 <= r2 {
-            return true;
-        }
-        let along = self.cos * (l2 - r2).sqrt() - self.sin * bound;
-        self.axis.dot(w) >= along - CONE_MARGIN * l2.sqrt()
+        let e = center - self.apex + self.axis * (bound * self.inv_sin);
+        let s = self.axis.dot(e);
+        s >= 0.0 && s * s >= self.cos2 * e.length_squared()
     }
 }
 
@@ -361,7 +367,8 @@ struct PlaneCells {
     /// The origin's cross coordinates relative to the level's lattice, in cells.
     start: [f64; 2],
     inv_cell: f64,
-    top: [i64; 2],
+    /// The last cell on each cross axis, as f64 (exact: it is below 2²¹).
+    top: [f64; 2],
 }
 
 impl PlaneCells {
@@ -373,7 +380,7 @@ impl PlaneCells {
         PlaneCells {
             start: cross.map(|a| (packet.rays[0].o[a] - level.origin[a]) * inv_cell),
             inv_cell,
-            top: cross.map(|a| level.dims[a] - 1),
+            top: cross.map(|a| (level.dims[a] - 1) as f64),
         }
     }
 
@@ -391,8 +398,12 @@ impl PlaneCells {
             } else {
                 (delta * range.hi[j], delta * range.lo[j])
             };
+            // ⌊x⌋ clamped to [0, top]: clamped first, where truncation is
+            // the floor (and a NaN becomes 0, as `floor_to_int` makes it).
             let cell = |p: f64| {
-                super::walk::floor_to_int(self.start[j] + p * self.inv_cell).clamp(0, self.top[j])
+                (self.start[j] + p * self.inv_cell)
+                    .max(0.0)
+                    .min(self.top[j]) as i64
             };
             rect.lo[j] = cell(lo);
             rect.hi[j] = cell(hi);
@@ -460,18 +471,44 @@ impl Level {
         let mut range = packet.slope_range(search.live);
         let cells = PlaneCells::new(self, packet);
         let (first, last) = (first * step, last * step);
+        let mut blocks = LayerBlocks {
+            state: LayerState::Empty,
+            lo: [0; 2],
+            width: 0,
+            blocks: [None; LAYER_BLOCKS],
+        };
+        // The last slab of the aligned run of 2^shift slabs that s is in (or of the walk).
+        let run_end = |s: i64, shift: u32| {
+            if step > 0 {
+                (s | ((1 << shift) - 1)).min(last)
+            } else {
+                (s >> shift << shift).max(last)
+            }
+        };
+        let mut region_end = first - step;
         let mut s = first;
         while s * step <= last * step {
-            // The rest of the layer of slabs one block thick that s is in.
-            let layer_end = if step > 0 {
-                (s | ((1 << BLOCK_SHIFT) - 1)).min(last)
-            } else {
-                (s >> BLOCK_SHIFT << BLOCK_SHIFT).max(last)
-            };
             let mut entry = cells.at(&range, delta(entry_plane(s)));
-            let layer_exit = cells.at(&range, delta(entry_plane(layer_end + step)));
-            let blocks = self.layer_blocks(k, s, Rect::between(&entry, &layer_exit), empty_space);
-            if !matches!(blocks, LayerBlocks::Empty) {
+            let empty_until = if s * step > region_end * step {
+                // Entering a layer of regions: crossed at once when its
+                // rectangle meets no occupied block.
+                region_end = run_end(s, 2 * BLOCK_SHIFT);
+                let exit = cells.at(&range, delta(entry_plane(region_end + step)));
+                let rect = Rect::between(&entry, &exit);
+                (!self.any_block_in(k, [s, region_end], rect)).then_some(region_end)
+            } else {
+                None
+            };
+            let empty_until = empty_until.or_else(|| {
+                // The rest of the layer of slabs one block thick that s is in.
+                let layer_end = run_end(s, BLOCK_SHIFT);
+                let layer_exit = cells.at(&range, delta(entry_plane(layer_end + step)));
+                let rect = Rect::between(&entry, &layer_exit);
+                self.layer_blocks(k, s, rect, empty_space, &mut blocks);
+                (blocks.state == LayerState::Empty).then_some(layer_end)
+            });
+            let Some(empty_until) = empty_until else {
+                let layer_end = run_end(s, BLOCK_SHIFT);
                 while s * step <= layer_end * step {
                     let leaving = cells.at(&range, delta(entry_plane(s + step)));
                     self.visit_slab(
@@ -497,29 +534,40 @@ impl Level {
                         entry = cells.at(&range, delta(entry_plane(s)));
                     }
                 }
-            } else {
-                s = layer_end + step;
-                if search.retire(travel(s)) {
-                    if search.live == 0 {
-                        return;
-                    }
-                    range = packet.slope_range(search.live);
+                continue;
+            };
+            s = empty_until + step;
+            if search.retire(travel(s)) {
+                if search.live == 0 {
+                    return;
                 }
+                range = packet.slope_range(search.live);
             }
         }
     }
 
-    /// The blocks of a layer's rectangle, fetched once for all its slabs.
-    fn layer_blocks(&self, k: usize, s: i64, rect: Rect, empty_space: EmptySpace) -> LayerBlocks {
+    /// Fetches the blocks of a layer's rectangle into `layer`, once for all
+    /// the layer's slabs.
+    fn layer_blocks(
+        &self,
+        k: usize,
+        s: i64,
+        rect: Rect,
+        empty_space: EmptySpace,
+        layer: &mut LayerBlocks,
+    ) {
         let (u, v) = ((k + 1) % 3, (k + 2) % 3);
         let lo = rect.lo.map(|c| c >> BLOCK_SHIFT);
         let hi = rect.hi.map(|c| c >> BLOCK_SHIFT);
-        let count = ((hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1)) as usize;
-        if count > LAYER_BLOCKS || empty_space == EmptySpace::ProbeEveryCell {
-            return LayerBlocks::ProbeEach;
+        let width = hi[1] - lo[1] + 1;
+        if ((hi[0] - lo[0] + 1) * width) as usize > LAYER_BLOCKS
+            || empty_space == EmptySpace::ProbeEveryCell
+        {
+            layer.state = LayerState::ProbeEach;
+            return;
         }
-        let mut blocks = [None; LAYER_BLOCKS];
         let mut any = false;
+        let mut slot = layer.blocks.iter_mut();
         for bu in lo[0]..=hi[0] {
             for bv in lo[1]..=hi[1] {
                 let mut b = [0; 3];
@@ -528,18 +576,55 @@ impl Level {
                 b[v] = bv;
                 let block = self.table.get(block_key(b));
                 any |= block.is_some();
-                blocks[((bu - lo[0]) * (hi[1] - lo[1] + 1) + (bv - lo[1])) as usize] = block;
+                if let Some(slot) = slot.next() {
+                    *slot = block;
+                }
             }
         }
-        if any {
-            LayerBlocks::Fetched {
-                lo,
-                width: hi[1] - lo[1] + 1,
-                blocks,
-            }
+        (layer.lo, layer.width) = (lo, width);
+        layer.state = if any {
+            LayerState::Fetched
         } else {
-            LayerBlocks::Empty
+            LayerState::Empty
+        };
+    }
+
+    /// Whether any block is occupied among the slabs `slabs` (both ends
+    /// inside one layer of regions along axis `k`) within `rect`: one region
+    /// probe per 16×16 cells of the rectangle.
+    fn any_block_in(&self, k: usize, slabs: [i64; 2], rect: Rect) -> bool {
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        let side = 1 << BLOCK_SHIFT;
+        let [lo, hi] = [rect.lo, rect.hi].map(|c| c.map(|c| c >> BLOCK_SHIFT));
+        let blocks = slabs.map(|s| s >> BLOCK_SHIFT);
+        let region = |b: i64| b >> BLOCK_SHIFT;
+        for ru in region(lo[0])..=region(hi[0]) {
+            for rv in region(lo[1])..=region(hi[1]) {
+                let mut r = [0; 3];
+                r[k] = region(blocks[0]);
+                r[u] = ru;
+                r[v] = rv;
+                let mask = match self.regions.get(block_key(r)) {
+                    None => continue,
+                    Some(u64::MAX) => return true,
+                    Some(mask) => mask,
+                };
+                // The blocks of this region in the slabs and the rectangle,
+                // in the region's own coordinates.
+                let (mut from, mut to) = ([0; 3], [0; 3]);
+                let local = |b: i64, r: i64| (b - r * side).clamp(0, side - 1);
+                (from[k], to[k]) = (
+                    local(blocks[0].min(blocks[1]), r[k]),
+                    local(blocks[0].max(blocks[1]), r[k]),
+                );
+                (from[u], to[u]) = (local(lo[0], ru), local(hi[0], ru));
+                (from[v], to[v]) = (local(lo[1], rv), local(hi[1], rv));
+                if mask & box_mask(from, to) != 0 {
+                    return true;
+                }
+            }
         }
+        false
     }
 
     /// Visits the occupied cells of slab `s` within `rect`.
@@ -559,10 +644,11 @@ impl Level {
                 c[k] = s;
                 c[u] = cu;
                 c[v] = cv;
-                let block = match blocks {
-                    LayerBlocks::Fetched { lo, width, blocks } => {
+                let block = match blocks.state {
+                    LayerState::Fetched => {
                         let (bu, bv) = (cu >> BLOCK_SHIFT, cv >> BLOCK_SHIFT);
-                        blocks[((bu - lo[0]) * width + (bv - lo[1])) as usize]
+                        blocks.blocks
+                            [((bu - blocks.lo[0]) * blocks.width + (bv - blocks.lo[1])) as usize]
                     }
                     _ => self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT))),
                 };
@@ -574,20 +660,27 @@ impl Level {
     }
 }
 
-/// What a layer's rectangle holds. It lives on the stack for one layer, so
-/// the fetched blocks stay inline rather than behind an allocation.
-#[allow(clippy::large_enum_variant)]
-enum LayerBlocks {
+/// What a layer's rectangle holds.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum LayerState {
     /// Only empty blocks: the layer is crossed without a look inside.
     Empty,
-    /// Its blocks, row-major over the block rectangle starting at `lo`.
-    Fetched {
-        lo: [i64; 2],
-        width: i64,
-        blocks: [Option<Block>; LAYER_BLOCKS],
-    },
+    /// Its blocks are in [`LayerBlocks::blocks`].
+    Fetched,
     /// Too many blocks to fetch up front (or every cell is to be probed).
     ProbeEach,
+}
+
+/// The blocks of the current layer's rectangle. One per packet walk, reused
+/// layer after layer.
+struct LayerBlocks {
+    state: LayerState,
+    /// The rectangle's first block on the two cross axes.
+    lo: [i64; 2],
+    /// Blocks per row on the second cross axis.
+    width: i64,
+    /// Row-major over the rectangle from `lo` (when `Fetched`).
+    blocks: [Option<Block>; LAYER_BLOCKS],
 }
 
 impl<R: Real> VoxelHashGrid<R> {

@@ -9,6 +9,11 @@
 //! probe which of its 64 cells hold anything: that is the coarse occupancy
 //! that lets it skip empty space.
 //!
+//! Blocks are grouped in turn into regions of 4×4×4 blocks, and a second,
+//! much smaller table maps a region to the mask of its occupied blocks: a
+//! packet learns from one probe there whether a layer of its slabs meets
+//! any occupied block at all.
+//!
 //! Open addressing with linear probing, power-of-two capacity, load ≤ 2/3.
 //! The full key is stored, so a hash collision costs a probe, never a
 //! candidate.
@@ -32,15 +37,55 @@ pub fn block_key(b: [i64; 3]) -> BlockKey {
     (b[0] as u64) | (b[1] as u64) << BLOCK_COORD_BITS | (b[2] as u64) << (2 * BLOCK_COORD_BITS)
 }
 
-/// The bit of a cell inside its block's occupancy mask.
+/// The coordinates [`block_key`] packed.
+pub fn unpack_key(key: BlockKey) -> [i64; 3] {
+    let m = MAX_BLOCKS_PER_AXIS as u64 - 1;
+    [0, 1, 2].map(|a| (key >> (a as u32 * BLOCK_COORD_BITS) & m) as i64)
+}
+
+/// The bit of a cell inside its block's occupancy mask (and of a block
+/// inside its region's: both group 4×4×4).
 #[inline(always)]
 pub fn cell_bit(c: [i64; 3]) -> u32 {
     let m = BLOCK_SIDE - 1;
     ((c[0] & m) | (c[1] & m) << BLOCK_SHIFT | (c[2] & m) << (2 * BLOCK_SHIFT)) as u32
 }
 
+/// The bits of a 4×4×4 mask (laid out as [`cell_bit`]) inside the box
+/// `lo..=hi`, given as coordinates within the group (0..4 each).
+#[inline(always)]
+pub fn box_mask(lo: [i64; 3], hi: [i64; 3]) -> u64 {
+    let span = |axis: usize| SPANS[axis][lo[axis] as usize][hi[axis] as usize];
+    span(0) & span(1) & span(2)
+}
+
+/// `SPANS[axis][lo][hi]`: the bits of a 4×4×4 mask whose coordinate on
+/// `axis` lies in `lo..=hi`.
+const SPANS: [[[u64; 4]; 4]; 3] = {
+    let mut spans = [[[0; 4]; 4]; 3];
+    let mut bit = 0;
+    while bit < 64 {
+        let c = [bit & 3, bit >> 2 & 3, bit >> 4];
+        let mut axis = 0;
+        while axis < 3 {
+            let mut lo = 0;
+            while lo <= c[axis] {
+                let mut hi = c[axis];
+                while hi < 4 {
+                    spans[axis][lo][hi] |= 1 << bit;
+                    hi += 1;
+                }
+                lo += 1;
+            }
+            axis += 1;
+        }
+        bit += 1;
+    }
+    spans
+};
+
 /// An occupied block: which of its cells are occupied, and where they start.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Block {
     pub occupied: u64,
     pub first_cell: u32,
@@ -61,23 +106,43 @@ impl Block {
 }
 
 #[derive(Clone, Copy, Debug)]
-struct Slot {
+struct Slot<V> {
     key: BlockKey,
-    block: Block,
+    value: V,
 }
 
-const EMPTY_SLOT: Slot = Slot {
-    key: EMPTY,
-    block: Block {
-        occupied: 0,
-        first_cell: 0,
-    },
-};
-
-pub struct BlockTable {
-    slots: Vec<Slot>,
+/// A hash table from packed 4×4×4-group coordinates to `V`.
+pub struct GroupTable<V> {
+    slots: Vec<Slot<V>>,
     mask: usize,
 }
+
+/// Occupied blocks, by block coordinates.
+pub type BlockTable = GroupTable<Block>;
+
+/// The regions (4×4×4 blocks) holding `blocks`, each with the mask of its
+/// occupied blocks, keyed by region coordinates.
+pub fn regions(blocks: &[(BlockKey, Block)]) -> Vec<(BlockKey, u64)> {
+    let mut bits: Vec<(BlockKey, u64)> = blocks
+        .iter()
+        .map(|&(key, _)| {
+            let b = unpack_key(key);
+            (block_key(b.map(|v| v >> BLOCK_SHIFT)), 1u64 << cell_bit(b))
+        })
+        .collect();
+    bits.sort_unstable_by_key(|&(key, _)| key);
+    let mut regions: Vec<(BlockKey, u64)> = Vec::new();
+    for (key, bit) in bits {
+        match regions.last_mut() {
+            Some((last, mask)) if *last == key => *mask |= bit,
+            _ => regions.push((key, bit)),
+        }
+    }
+    regions
+}
+/// The masks of the occupied blocks of each region (4×4×4 blocks holding
+/// any), by region coordinates.
+pub type RegionTable = GroupTable<u64>;
 
 /// murmur3's 64-bit finaliser: every key bit reaches every hash bit, so
 /// blocks along a line or a plane do not crowd one stretch of the table.
@@ -90,31 +155,35 @@ fn mix(mut k: u64) -> u64 {
     k ^ (k >> 33)
 }
 
-impl BlockTable {
-    /// A table for `blocks`, whose keys must be distinct.
-    pub fn new(blocks: &[(BlockKey, Block)]) -> Self {
-        let capacity = (blocks.len() * 3).div_ceil(2).next_power_of_two().max(2);
-        let mut table = BlockTable {
-            slots: vec![EMPTY_SLOT; capacity],
+impl<V: Copy + Default> GroupTable<V> {
+    /// A table for `entries`, whose keys must be distinct.
+    pub fn new(entries: &[(BlockKey, V)]) -> Self {
+        let capacity = (entries.len() * 3).div_ceil(2).next_power_of_two().max(2);
+        let empty = Slot {
+            key: EMPTY,
+            value: V::default(),
+        };
+        let mut table = GroupTable {
+            slots: vec![empty; capacity],
             mask: capacity - 1,
         };
-        for &(key, block) in blocks {
+        for &(key, value) in entries {
             let mut i = mix(key) as usize & table.mask;
             while table.slots[i].key != EMPTY {
                 i = (i + 1) & table.mask;
             }
-            table.slots[i] = Slot { key, block };
+            table.slots[i] = Slot { key, value };
         }
         table
     }
 
     #[inline(always)]
-    pub fn get(&self, key: BlockKey) -> Option<Block> {
+    pub fn get(&self, key: BlockKey) -> Option<V> {
         let mut i = mix(key) as usize & self.mask;
         loop {
             let slot = &self.slots[i];
             if slot.key == key {
-                return Some(slot.block);
+                return Some(slot.value);
             }
             if slot.key == EMPTY {
                 return None;
@@ -124,7 +193,7 @@ impl BlockTable {
     }
 
     pub fn bytes(&self) -> usize {
-        self.slots.len() * std::mem::size_of::<Slot>()
+        self.slots.len() * std::mem::size_of::<Slot<V>>()
     }
 }
 
@@ -165,5 +234,44 @@ mod tests {
         assert!(b.holds(7) && !b.holds(6));
         assert_eq!(b.cell_index(63), 14);
         assert_eq!(cell_bit([5, 2, 3]), 1 | 2 << 2 | 3 << 4);
+    }
+
+    #[test]
+    fn regions_gather_the_masks_of_their_blocks() {
+        let block = Block::default();
+        let blocks =
+            [[0, 0, 0], [3, 3, 3], [4, 0, 0], [5, 9, 2], [1, 2, 3]].map(|b| (block_key(b), block));
+        let mut regions = regions(&blocks);
+        regions.sort_unstable();
+        let mut expected = vec![
+            (
+                block_key([0, 0, 0]),
+                1 | 1 << 63 | 1 << (1 | 2 << 2 | 3 << 4),
+            ),
+            (block_key([1, 0, 0]), 1),
+            (block_key([1, 2, 0]), 1u64 << (1 | 1 << 2 | 2 << 4)),
+        ];
+        expected.sort_unstable();
+        assert_eq!(regions, expected);
+        assert_eq!(unpack_key(block_key([5, 9, 2])), [5, 9, 2]);
+    }
+
+    #[test]
+    fn box_mask_holds_exactly_the_box() {
+        let boxes = [
+            ([0, 0, 0], [3, 3, 3]),
+            ([1, 2, 0], [1, 2, 0]),
+            ([0, 1, 3], [2, 3, 3]),
+            ([3, 0, 1], [3, 3, 2]),
+        ];
+        for (lo, hi) in boxes {
+            let mask = box_mask(lo, hi);
+            for bit in 0..64i64 {
+                let c = [bit & 3, bit >> 2 & 3, bit >> 4];
+                let inside = (0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]);
+                assert_eq!(mask >> bit & 1 == 1, inside, "{lo:?}..={hi:?} at {c:?}");
+                assert_eq!(cell_bit(c) as i64, bit);
+            }
+        }
     }
 }

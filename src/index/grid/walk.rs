@@ -12,6 +12,7 @@ use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
 
 /// A ray in f64, with its length for turning distances into t.
+#[derive(Clone, Copy)]
 pub struct Ray64 {
     pub o: [f64; 3],
     pub d: [f64; 3],
