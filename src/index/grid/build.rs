@@ -47,6 +47,7 @@ use crate::geometry::{Ellipsoid, Real, Vec3Ops};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
+use voracious_radix_sort::RadixSort;
 
 /// The ratio of the largest to the smallest reach a level holds.
 pub const BAND: f64 = 4.0;
@@ -270,18 +271,17 @@ fn build_level(
         floor_to_int((p - lo[axis]) / cell).clamp(0, dims[axis] - 1)
     };
     let code = PairCode::new(dims.to_array(), ids.len());
-    let cells = |id: u32| {
+    // The cells a sphere overlaps: a box of them, low and high corner.
+    let cell_box = |id: u32| {
         let e = &extents[id as usize];
         let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
         let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
-        (a[0]..=b[0]).flat_map(move |x| {
-            (a[1]..=b[1]).flat_map(move |y| (a[2]..=b[2]).map(move |z| [x, y, z]))
-        })
+        (a, b)
     };
     let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
-        sorted_cells::<u64, _>(&code, ids, cells, rank, order)
+        sorted_cells::<u64>(&code, ids, cell_box, rank, order)
     } else {
-        sorted_cells::<u128, _>(&code, ids, cells, rank, order)
+        sorted_cells::<u128>(&code, ids, cell_box, rank, order)
     };
     Level {
         cell,
@@ -297,9 +297,11 @@ fn build_level(
 
 /// (cell, sphere) pairs packed into integers that sort by block, then by
 /// cell within the block (the order a block's mask ranks its cells in), then
-/// by sphere id: the block's index in the level's box, the cell's bit, and
-/// the sphere's position in the level's ascending id list. One integer
-/// (a u64 whenever the three fit) sorts far faster than a tuple.
+/// by sphere id: the block's index in the level's box, the cell's bit, the
+/// sphere's position in the level's ascending id list, and a last bit set on
+/// the sphere's home pair (the cell of its box's low corner, which sorts
+/// before its other cells). One integer (a u64 whenever they fit) sorts far
+/// faster than a tuple.
 struct PairCode {
     /// Blocks per axis.
     blocks: [u64; 3],
@@ -310,9 +312,14 @@ struct PairCode {
 trait PairKey: Copy + Ord + Send + Sync {
     fn narrow(wide: u128) -> Self;
     fn wide(self) -> u128;
+    /// Sorts `keys` ascending on the current rayon pool.
+    fn sort(keys: &mut [Self]);
 }
 
 impl PairKey for u64 {
+    fn sort(keys: &mut [Self]) {
+        keys.voracious_mt_sort(rayon::current_num_threads());
+    }
     fn narrow(wide: u128) -> Self {
         wide as u64
     }
@@ -322,6 +329,9 @@ impl PairKey for u64 {
 }
 
 impl PairKey for u128 {
+    fn sort(keys: &mut [Self]) {
+        keys.voracious_mt_sort(rayon::current_num_threads());
+    }
     fn narrow(wide: u128) -> Self {
         wide
     }
@@ -341,23 +351,27 @@ impl PairCode {
     /// Bits a packed pair needs.
     fn bits(&self) -> u32 {
         let blocks = self.blocks.iter().product::<u64>();
-        u64::BITS - blocks.leading_zeros() + 3 * BLOCK_SHIFT + self.id_bits
+        u64::BITS - blocks.leading_zeros() + 3 * BLOCK_SHIFT + self.id_bits + 1
     }
 
-    fn pack<K: PairKey>(&self, c: [i64; 3], local: usize) -> K {
+    fn pack<K: PairKey>(&self, c: [i64; 3], local: usize, home: bool) -> K {
         let b = c.map(|v| (v >> BLOCK_SHIFT) as u64);
         let block = (b[2] * self.blocks[1] + b[1]) * self.blocks[0] + b[0];
         let cell = u128::from(block) << (3 * BLOCK_SHIFT) | u128::from(cell_bit(c));
-        K::narrow(cell << self.id_bits | local as u128)
+        K::narrow((cell << self.id_bits | local as u128) << 1 | u128::from(home))
     }
 
     /// The packed cell (block index and cell bit) and the sphere's position.
     fn unpack<K: PairKey>(&self, key: K) -> (u64, usize) {
-        let key = key.wide();
+        let key = key.wide() >> 1;
         (
             (key >> self.id_bits) as u64,
             (key & ((1 << self.id_bits) - 1)) as usize,
         )
+    }
+
+    fn is_home<K: PairKey>(&self, key: K) -> bool {
+        key.wide() & 1 != 0
     }
 
     /// The table key of the block with index `block`.
@@ -367,83 +381,281 @@ impl PairCode {
     }
 }
 
+/// Spheres per task of the pair generation.
+const PAIR_CHUNK: usize = 1 << 12;
+
 /// Packs and sorts the (cell, sphere) pairs of the level's spheres `ids`
-/// (`cells(id)` lists a sphere's cells), numbers the spheres in cell order,
-/// and compresses the pairs into blocks and CSR lists.
-fn sorted_cells<K: PairKey, C: Iterator<Item = [i64; 3]>>(
+/// (`cell_box(id)` is the box of cells a sphere overlaps), numbers the
+/// spheres in cell order, and compresses the pairs into blocks and CSR lists.
+fn sorted_cells<K: PairKey>(
     code: &PairCode,
     ids: &[u32],
-    cells: impl Fn(u32) -> C + Sync + Send,
+    cell_box: impl Fn(u32) -> ([i64; 3], [i64; 3]) + Sync,
     rank: &mut [u32],
     order: &mut Vec<u32>,
 ) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    let mut keys: Vec<K> = ids
-        .par_iter()
-        .enumerate()
-        .flat_map_iter(|(local, &id)| cells(id).map(move |c| code.pack::<K>(c, local)))
+    // Counted first, then written in place: each task fills its own slice.
+    let volume = |(a, b): ([i64; 3], [i64; 3])| {
+        (0..3)
+            .map(|k| (b[k] - a[k] + 1) as usize)
+            .product::<usize>()
+    };
+    let sizes: Vec<usize> = ids
+        .par_chunks(PAIR_CHUNK)
+        .map(|chunk| chunk.iter().map(|&id| volume(cell_box(id))).sum())
         .collect();
-    keys.par_sort_unstable();
-    let id_of = |i: usize| ids[code.unpack(keys[i]).1];
-    number_in_cell_order((0..keys.len()).map(id_of), rank, order);
-    compress(code, keys.len(), |i| code.unpack(keys[i]).0, id_of, rank)
+    let mut keys = vec![K::narrow(0); sizes.iter().sum()];
+    let mut parts = Vec::with_capacity(sizes.len());
+    let mut rest = keys.as_mut_slice();
+    for &size in &sizes {
+        let (part, tail) = rest.split_at_mut(size);
+        parts.push(part);
+        rest = tail;
+    }
+    parts
+        .into_par_iter()
+        .zip(ids.par_chunks(PAIR_CHUNK))
+        .enumerate()
+        .for_each(|(c, (part, chunk))| {
+            let mut slots = part.iter_mut();
+            for (j, &id) in chunk.iter().enumerate() {
+                let (low, high) = cell_box(id);
+                for x in low[0]..=high[0] {
+                    for y in low[1]..=high[1] {
+                        for z in low[2]..=high[2] {
+                            let cell = [x, y, z];
+                            if let Some(slot) = slots.next() {
+                                *slot = code.pack(cell, c * PAIR_CHUNK + j, cell == low);
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    K::sort(&mut keys);
+    number_in_cell_order(code, &keys, ids, rank, order);
+    compress(code, &keys, ids, rank)
 }
 
-/// Numbers the spheres of sorted (cell, id) pairs in the order they first
+/// Sorted pairs per task of the numbering and the compression.
+const SORTED_CHUNK: usize = 1 << 16;
+
+/// Numbers the spheres of the sorted pairs `keys` in the order they first
 /// appear (`rank[id]`, counting on from `order.len()`), and appends them to
-/// `order` so. A sphere first appears in the cell its box's low corner is in,
-/// so a cell's own spheres get consecutive numbers and neighbouring cells
-/// nearby ones: the grid's copies of the spheres a ray tests in one cell,
-/// and in the next, share cache lines instead of lying anywhere in the array.
-fn number_in_cell_order(ids: impl Iterator<Item = u32>, rank: &mut [u32], order: &mut Vec<u32>) {
-    for id in ids {
-        let r = &mut rank[id as usize];
-        if *r == u32::MAX {
-            *r = order.len() as u32;
-            order.push(id);
-        }
+/// `order` so. A sphere first appears in its home pair, the cell its box's
+/// low corner is in, so a cell's own spheres get consecutive numbers and
+/// neighbouring cells nearby ones: the grid's copies of the spheres a ray
+/// tests in one cell, and in the next, share cache lines instead of lying
+/// anywhere in the array. Home pairs are marked, so the numbering is a count
+/// of them: in parallel, each task numbering its own from its offset.
+fn number_in_cell_order<K: PairKey>(
+    code: &PairCode,
+    keys: &[K],
+    ids: &[u32],
+    rank: &mut [u32],
+    order: &mut Vec<u32>,
+) {
+    let homes: Vec<usize> = keys
+        .par_chunks(SORTED_CHUNK)
+        .map(|chunk| chunk.iter().filter(|&&k| code.is_home(k)).count())
+        .collect();
+    let start = order.len();
+    order.resize(start + homes.iter().sum::<usize>(), u32::MAX);
+    let mut parts = Vec::with_capacity(homes.len());
+    let mut rest = &mut order[start..];
+    let mut first = start;
+    for &count in &homes {
+        let (part, tail) = rest.split_at_mut(count);
+        parts.push((first, part));
+        rest = tail;
+        first += count;
+    }
+    // Each sphere has exactly one home pair, so the tasks write distinct ranks.
+    let ranks: Vec<Vec<(u32, u32)>> = parts
+        .into_par_iter()
+        .zip(keys.par_chunks(SORTED_CHUNK))
+        .map(|((first, part), chunk)| {
+            let homes = chunk.iter().filter(|&&k| code.is_home(k));
+            let mut numbered = Vec::with_capacity(part.len());
+            for ((slot, &key), n) in part.iter_mut().zip(homes).zip(first..) {
+                let id = ids[code.unpack(key).1];
+                *slot = id;
+                numbered.push((id, n as u32));
+            }
+            numbered
+        })
+        .collect();
+    for (id, n) in ranks.into_iter().flatten() {
+        rank[id as usize] = n;
     }
 }
 
-/// From the `len` sorted pairs (packed cell `cell_of(i)`, sphere `id_of(i)`) to the blocks,
-/// the CSR offsets of the occupied cells, and the flat array of the
-/// spheres' numbers (`rank`).
-fn compress(
+/// A run of sorted pairs compressed: the occupied cells that start in it,
+/// the blocks that start in it, and the cells at its head that belong to
+/// a block started before it.
+struct CompressedRun {
+    cell_start: Vec<u32>,
+    blocks: Vec<(u64, Block)>,
+    carried: u64,
+}
+
+/// From the sorted pairs `keys` to the blocks, the CSR offsets of the
+/// occupied cells, and the flat array of the spheres' numbers (`rank`).
+/// Runs of pairs are compressed in parallel, then joined.
+fn compress<K: PairKey>(
     code: &PairCode,
-    len: usize,
-    cell_of: impl Fn(usize) -> u64,
-    id_of: impl Fn(usize) -> u32 + Sync,
+    keys: &[K],
+    ids: &[u32],
     rank: &[u32],
 ) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    let ids: Vec<u32> = (0..len)
+    let cell_of = |i: usize| code.unpack(keys[i]).0;
+    let numbers: Vec<u32> = keys
+        .par_iter()
+        .map(|&k| rank[ids[code.unpack(k).1] as usize])
+        .collect();
+    let runs: Vec<CompressedRun> = (0..keys.len().div_ceil(SORTED_CHUNK))
         .into_par_iter()
-        .map(|i| rank[id_of(i) as usize])
+        .map(|r| {
+            let mut run = CompressedRun {
+                cell_start: Vec::new(),
+                blocks: Vec::new(),
+                carried: 0,
+            };
+            let mut previous = if r == 0 {
+                u64::MAX
+            } else {
+                cell_of(r * SORTED_CHUNK - 1)
+            };
+            for i in r * SORTED_CHUNK..((r + 1) * SORTED_CHUNK).min(keys.len()) {
+                let cell = cell_of(i);
+                if cell == previous {
+                    continue;
+                }
+                let (block, bit) = (cell >> (3 * BLOCK_SHIFT), cell & 63);
+                if previous == u64::MAX || block != previous >> (3 * BLOCK_SHIFT) {
+                    let first_cell = run.cell_start.len() as u32;
+                    run.blocks.push((
+                        block,
+                        Block {
+                            occupied: 0,
+                            first_cell,
+                        },
+                    ));
+                }
+                match run.blocks.last_mut() {
+                    Some((_, b)) => b.occupied |= 1 << bit,
+                    None => run.carried |= 1 << bit,
+                }
+                run.cell_start.push(i as u32);
+                previous = cell;
+            }
+            run
+        })
         .collect();
     let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
     let mut cell_start: Vec<u32> = Vec::new();
-    let (mut previous, mut previous_block) = (u64::MAX, u64::MAX);
-    for i in 0..len {
-        let cell = cell_of(i);
-        if cell == previous {
-            continue;
-        }
-        previous = cell;
-        let (block, bit) = (cell >> (3 * BLOCK_SHIFT), cell & 63);
-        if block != previous_block {
-            previous_block = block;
-            let first_cell = cell_start.len() as u32;
-            blocks.push((
-                code.block_key(block),
-                Block {
-                    occupied: 0,
-                    first_cell,
-                },
-            ));
-        }
+    for run in runs {
         if let Some((_, b)) = blocks.last_mut() {
-            b.occupied |= 1 << bit;
+            b.occupied |= run.carried;
         }
-        cell_start.push(i as u32);
+        let offset = cell_start.len() as u32;
+        blocks.extend(run.blocks.into_iter().map(|(block, b)| {
+            let first_cell = b.first_cell + offset;
+            (code.block_key(block), Block { first_cell, ..b })
+        }));
+        cell_start.extend(run.cell_start);
     }
-    cell_start.push(len as u32);
-    (blocks, cell_start, ids)
+    cell_start.push(keys.len() as u32);
+    (blocks, cell_start, numbers)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Boxes of 1–2 cells per axis in a 40×30×20 lattice, by a fixed LCG.
+    fn boxes(count: usize) -> Vec<([i64; 3], [i64; 3])> {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: i64| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 33) as i64 % n
+        };
+        (0..count)
+            .map(|_| {
+                let low = [next(39), next(29), next(19)];
+                let high = low.map(|c| c + next(2));
+                (low, high)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn parallel_numbering_and_compression_match_a_serial_pass() {
+        // Enough pairs for several runs of SORTED_CHUNK, blocks straddling them.
+        let boxes = boxes(60_000);
+        let dims = [40, 30, 20];
+        let ids: Vec<u32> = (0..boxes.len() as u32).map(|i| 3 * i + 1).collect();
+        let spheres = *ids.last().unwrap() as usize + 1;
+        let code = PairCode::new(dims, ids.len());
+        let (mut rank, mut order) = (vec![u32::MAX; spheres], vec![7]);
+        let cell_box = |id: u32| boxes[(id as usize - 1) / 3];
+        let (blocks, cell_start, numbers) =
+            sorted_cells::<u64>(&code, &ids, cell_box, &mut rank, &mut order);
+
+        // The same, one pair at a time.
+        let mut pairs = Vec::new();
+        for (local, &(low, high)) in boxes.iter().enumerate() {
+            for x in low[0]..=high[0] {
+                for y in low[1]..=high[1] {
+                    for z in low[2]..=high[2] {
+                        let b = [x, y, z].map(|v| (v >> BLOCK_SHIFT) as u64);
+                        let block = (b[2] * code.blocks[1] + b[1]) * code.blocks[0] + b[0];
+                        pairs.push((block, cell_bit([x, y, z]), local));
+                    }
+                }
+            }
+        }
+        assert!(pairs.len() > 3 * SORTED_CHUNK);
+        pairs.sort_unstable();
+        let (mut want_rank, mut want_order) = (vec![u32::MAX; spheres], vec![7]);
+        for &(_, _, local) in &pairs {
+            let id = ids[local] as usize;
+            if want_rank[id] == u32::MAX {
+                want_rank[id] = want_order.len() as u32;
+                want_order.push(id as u32);
+            }
+        }
+        let mut want_blocks: Vec<(BlockKey, Block)> = Vec::new();
+        let mut want_starts = Vec::new();
+        for (i, &(block, bit, _)) in pairs.iter().enumerate() {
+            if i > 0 && pairs[i - 1].0 == block && pairs[i - 1].1 == bit {
+                continue;
+            }
+            if i == 0 || pairs[i - 1].0 != block {
+                let first_cell = want_starts.len() as u32;
+                want_blocks.push((
+                    code.block_key(block),
+                    Block {
+                        occupied: 0,
+                        first_cell,
+                    },
+                ));
+            }
+            want_blocks.last_mut().unwrap().1.occupied |= 1 << bit;
+            want_starts.push(i as u32);
+        }
+        want_starts.push(pairs.len() as u32);
+        let want_numbers: Vec<u32> = pairs
+            .iter()
+            .map(|&(_, _, local)| want_rank[ids[local] as usize])
+            .collect();
+
+        assert_eq!(order, want_order);
+        assert_eq!(rank, want_rank);
+        assert_eq!(cell_start, want_starts);
+        assert_eq!(blocks, want_blocks);
+        assert_eq!(numbers, want_numbers);
+    }
 }
