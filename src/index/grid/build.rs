@@ -286,6 +286,7 @@ fn build_level(
     Level {
         cell,
         origin: lo,
+        far: (lo + dims.as_dvec3() * cell).to_array(),
         dims: dims.to_array(),
         slack,
         table: BlockTable::new(&blocks),

@@ -43,6 +43,8 @@ pub struct Level {
     origin: DVec3,
     /// Cells per axis.
     dims: [i64; 3],
+    /// The high corner of the level's box: `origin + dims·cell`.
+    far: [f64; 3],
     /// How far (in distance along a ray) a rounded hit of one of this level's
     /// spheres may lie before the cell the walk finds it in.
     slack: f64,

@@ -79,8 +79,7 @@ impl Level {
     pub(super) fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (t_lo, t_hi);
         for a in 0..3 {
-            let lo = self.origin[a];
-            let hi = lo + self.dims[a] as f64 * self.cell;
+            let (lo, hi) = (self.origin[a], self.far[a]);
             if ray.d[a] == 0.0 {
                 if !(ray.o[a] >= lo && ray.o[a] <= hi) {
                     return None;
