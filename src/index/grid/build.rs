@@ -224,13 +224,24 @@ fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
     // Sparse bands: coarser cells while a cell still holds few centres, so
     // that rays cross fewer empty cells on their way to a sphere. Doubling
     // the cells merges them eight to one, so the centres per occupied cell
-    // only grow with the doublings: bisect for the most that stay sparse
+    // only grow with the doublings: search for the most that stay sparse
     // (a few passes over the band instead of one per doubling).
     let sparse = |doublings: i32| {
         let cell = finest * f64::from(doublings).exp2();
         centres_per_occupied_cell(extents, ids, cell) <= MAX_CENTRES_PER_CELL
     };
+    // Galloping up from the finest cells first: a dense band, where most
+    // spheres usually are, is settled by one pass.
     let (mut good, mut bad) = (0, MAX_COARSENING + 1);
+    let mut probe = 1;
+    while probe < bad {
+        if sparse(probe) {
+            good = probe;
+            probe *= 2;
+        } else {
+            bad = probe;
+        }
+    }
     while bad - good > 1 {
         let mid = (good + bad) / 2;
         if sparse(mid) {
