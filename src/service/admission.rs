@@ -6,7 +6,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 pub struct Admission {
     slots: usize,
@@ -29,6 +29,8 @@ pub enum Refused {
     QueueFull,
     /// Waited in the queue until the deadline.
     WaitedTooLong,
+    /// The client left while the render waited: nobody wants it any more.
+    Abandoned,
 }
 
 /// A place among the admitted renders, taken before the scene is parsed;
@@ -79,27 +81,54 @@ impl Admission {
 
 impl<'a> Place<'a> {
     /// Takes a slot, waiting for one until `deadline` if all are busy.
-    pub fn enter(mut self, deadline: Instant) -> Result<Ticket<'a>, Refused> {
+    ///
+    /// While it waits, every `poll` (and whenever it is woken without a
+    /// slot), and once more when it has its slot, it asks `gone` whether
+    /// the client has left; if so it gives its place (or slot) back at once
+    /// and the render never runs: [`Refused::Abandoned`].
+    pub fn enter(
+        mut self,
+        deadline: Instant,
+        poll: Duration,
+        mut gone: impl FnMut() -> bool,
+    ) -> Result<Ticket<'a>, Refused> {
         let gate = self.gate;
-        self.spent = true;
         let mut counts = gate.lock();
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if counts.running < gate.slots || left.is_zero() {
-                break;
+            if counts.running < gate.slots {
+                counts.waiting -= 1;
+                counts.running += 1;
+                self.spent = true;
+                drop(counts);
+                // Given back (and the next waiter woken) if dropped here.
+                let ticket = Ticket(gate);
+                return if gone() {
+                    Err(Refused::Abandoned)
+                } else {
+                    Ok(ticket)
+                };
             }
-            counts = gate
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                counts.waiting -= 1;
+                self.spent = true;
+                return Err(Refused::WaitedTooLong);
+            }
+            let (woken, _) = gate
                 .freed
-                .wait_timeout(counts, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        }
-        counts.waiting -= 1;
-        if counts.running < gate.slots {
-            counts.running += 1;
-            Ok(Ticket(gate))
-        } else {
-            Err(Refused::WaitedTooLong)
+                .wait_timeout(counts, left.min(poll))
+                .unwrap_or_else(PoisonError::into_inner);
+            if woken.running < gate.slots {
+                counts = woken;
+                continue;
+            }
+            // No slot yet: is anyone still waiting for this render? The
+            // lock is not held while asking. Dropping the place gives it back.
+            drop(woken);
+            if gone() {
+                return Err(Refused::Abandoned);
+            }
+            counts = gate.lock();
         }
     }
 }
@@ -183,8 +212,10 @@ mod tests {
     use super::*;
     use std::time::Duration;
 
+    const POLL: Duration = Duration::from_millis(5);
+
     fn enter(gate: &Admission, deadline: Instant) -> Result<Ticket<'_>, Refused> {
-        gate.reserve()?.enter(deadline)
+        gate.reserve()?.enter(deadline, POLL, || false)
     }
 
     #[test]
@@ -220,7 +251,7 @@ mod tests {
         assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
         drop(parsing);
         assert_eq!(gate.counts().waiting, 1);
-        let ticket = second.enter(Instant::now()).unwrap();
+        let ticket = second.enter(Instant::now(), POLL, || false).unwrap();
         assert_eq!(
             gate.counts(),
             Counts {
@@ -247,6 +278,51 @@ mod tests {
                 waiting: 0
             }
         );
+    }
+
+    #[test]
+    fn a_waiter_whose_client_left_gives_its_place_back_before_a_slot_frees() {
+        use std::sync::atomic::AtomicBool;
+        let gate = Admission::new(1, 1);
+        let held = enter(&gate, Instant::now()).unwrap();
+        let left = AtomicBool::new(false);
+        std::thread::scope(|s| {
+            let waiter = s.spawn(|| {
+                let place = gate.reserve().unwrap();
+                place
+                    .enter(Instant::now() + Duration::from_secs(10), POLL, || {
+                        left.load(Ordering::Relaxed)
+                    })
+                    .map(|_| ())
+            });
+            while gate.counts().waiting == 0 {
+                std::thread::yield_now();
+            }
+            assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
+            left.store(true, Ordering::Relaxed);
+            assert_eq!(waiter.join().unwrap(), Err(Refused::Abandoned));
+        });
+        // The slot was never taken; the place is free for another render.
+        assert_eq!(
+            gate.counts(),
+            Counts {
+                running: 1,
+                waiting: 0
+            }
+        );
+        assert!(gate.reserve().is_ok());
+        drop(held);
+        assert_eq!(gate.counts(), Counts::default());
+    }
+
+    #[test]
+    fn a_slot_is_given_back_when_its_client_is_found_gone() {
+        let gate = Admission::new(1, 0);
+        let place = gate.reserve().unwrap();
+        let refused = place.enter(Instant::now(), POLL, || true).err();
+        assert_eq!(refused, Some(Refused::Abandoned));
+        assert_eq!(gate.counts(), Counts::default());
+        assert!(enter(&gate, Instant::now()).is_ok());
     }
 
     #[test]

@@ -16,9 +16,12 @@ const READ_CHUNK: usize = 4096;
 /// size and doubles as its bytes arrive, so it is never more than twice
 /// what arrived (plus this) and a large body is moved only a few times.
 const BODY_CHUNK: usize = 64 * 1024;
-/// The shortest socket read timeout (std refuses zero, which to the OS
-/// means none at all).
-const MIN_READ_TIMEOUT: Duration = Duration::from_millis(1);
+/// Bytes handed to the socket per write of a response, so that the time
+/// left is judged between writes.
+const WRITE_CHUNK: usize = 64 * 1024;
+/// The shortest socket read or write timeout (std refuses zero, which to
+/// the OS means none at all).
+const MIN_SOCKET_TIMEOUT: Duration = Duration::from_millis(1);
 
 /// How long each phase of a request may take. Each is a deadline on the
 /// phase's whole time, not on one read: a client that trickles a byte at a
@@ -288,7 +291,7 @@ impl Connection {
                 return Err(ReadError::Stalled);
             };
             self.stream
-                .set_read_timeout(Some(left.max(MIN_READ_TIMEOUT)))
+                .set_read_timeout(Some(left.max(MIN_SOCKET_TIMEOUT)))
                 .map_err(|_| ReadError::Io)?;
             match (&*self.stream).read(buf) {
                 Ok(0) => return Err(ReadError::Closed),
@@ -306,7 +309,7 @@ impl Connection {
 
     fn read_some(&mut self, timeout: Duration) -> io::Result<usize> {
         self.stream
-            .set_read_timeout(Some(timeout.max(MIN_READ_TIMEOUT)))?;
+            .set_read_timeout(Some(timeout.max(MIN_SOCKET_TIMEOUT)))?;
         let mut chunk = [0u8; READ_CHUNK];
         let n = (&*self.stream).read(&mut chunk)?;
         self.pending.extend_from_slice(&chunk[..n]);
@@ -407,15 +410,43 @@ impl Response {
         out
     }
 
+    /// Writes the response, all of it before `deadline` (see [`write_before`]).
     pub fn write_to(
         &self,
-        mut stream: &TcpStream,
+        stream: &TcpStream,
         head_only: bool,
         keep_alive: bool,
+        deadline: Instant,
     ) -> io::Result<()> {
-        stream.write_all(&self.to_bytes(head_only, keep_alive))?;
-        stream.flush()
+        write_before(stream, &self.to_bytes(head_only, keep_alive), deadline)
     }
+}
+
+/// Writes all of `bytes` before `deadline`, or fails with
+/// [`io::ErrorKind::TimedOut`]. The deadline bounds the whole write, not
+/// each call: a client that reads a byte at a time makes every single
+/// write progress, yet is cut off at the deadline like one that reads
+/// nothing. Each write blocks with the time left as its socket timeout.
+pub fn write_before(mut stream: &TcpStream, bytes: &[u8], deadline: Instant) -> io::Result<()> {
+    let mut sent = 0;
+    while sent < bytes.len() {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                "the client did not take the response in time",
+            ));
+        }
+        stream.set_write_timeout(Some(left.max(MIN_SOCKET_TIMEOUT)))?;
+        let end = bytes.len().min(sent + WRITE_CHUNK);
+        match stream.write(&bytes[sent..end]) {
+            Ok(0) => return Err(io::ErrorKind::WriteZero.into()),
+            Ok(n) => sent += n,
+            Err(e) if is_timeout(&e) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    stream.flush()
 }
 
 /// The interim response that tells a client to send the body it announced.

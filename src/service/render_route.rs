@@ -1,6 +1,6 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
-use super::admission::Charge;
+use super::admission::{Charge, Refused};
 use super::error::ApiError;
 use super::http::{Connection, Response};
 use super::{ServiceConfig, State};
@@ -9,6 +9,10 @@ use crate::output::Format;
 use crate::render::{render_scene, RenderError, RenderOptions};
 use crate::scene::{self, Scene};
 use std::time::{Duration, Instant};
+
+/// How often a render waiting in the queue checks that its client is still
+/// there; one that left gives its place back within this time.
+const QUEUE_POLL: Duration = Duration::from_millis(100);
 
 /// The figures of a render, sent as headers and exposed to scripts.
 const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height";
@@ -152,12 +156,17 @@ pub fn handle(
     drop((body, charge));
     check_limits(&scene, &query, config)?;
 
-    let ticket = place
-        .enter(Instant::now() + config.render_timeout)
-        .map_err(busy)?;
-    if conn.peer_closed() {
-        return Ok(None);
-    }
+    // A client that leaves while its render waits gives its place back
+    // then, and the render never runs.
+    let deadline = Instant::now() + config.render_timeout;
+    let ticket = match place.enter(deadline, QUEUE_POLL, || conn.peer_closed()) {
+        Ok(ticket) => ticket,
+        Err(Refused::Abandoned) => {
+            state.metrics.render_abandoned();
+            return Ok(None);
+        }
+        Err(refused) => return Err(busy(refused)),
+    };
     let options = RenderOptions {
         spp: query.spp,
         depth: query.depth,
