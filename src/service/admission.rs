@@ -1,18 +1,21 @@
 //! Bounded admission to the render pool: at most `slots` renders run at once
 //! and at most `queue` more hold a place (their scene being parsed, or
 //! waiting for a slot); anyone past that is turned away at once (503) instead
-//! of piling up. And a bound on the request bodies held in memory at once,
-//! charged as their bytes arrive.
+//! of piling up. Slots are given in the order the renders asked for them, so
+//! an admitted render waits for at most the renders ahead of it in the queue.
+//! And a bound on the request bodies held in memory at once, charged as their
+//! bytes arrive.
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
+use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::thread::{self, Thread};
 use std::time::{Duration, Instant};
 
 pub struct Admission {
     slots: usize,
     queue: usize,
-    state: Mutex<Counts>,
-    freed: Condvar,
+    state: Mutex<Gate>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -20,6 +23,21 @@ pub struct Counts {
     pub running: usize,
     /// Renders holding a place but not a slot yet.
     pub waiting: usize,
+}
+
+/// The gate's state behind its lock.
+#[derive(Default)]
+struct Gate {
+    counts: Counts,
+    /// The renders waiting for a slot, first come first.
+    line: VecDeque<Waiter>,
+    next_id: u64,
+}
+
+struct Waiter {
+    id: u64,
+    /// Unparked when a slot may be its.
+    thread: Thread,
 }
 
 /// Why a render was not admitted.
@@ -37,7 +55,9 @@ pub enum Refused {
 /// given back when dropped unless it became a [`Ticket`].
 pub struct Place<'a> {
     gate: &'a Admission,
-    /// Turned into a ticket (or refused at its deadline): nothing to give back.
+    /// Its id in the line, once it waits for a slot.
+    in_line: Option<u64>,
+    /// Turned into a ticket: nothing to give back.
     spent: bool,
 }
 
@@ -49,102 +69,136 @@ impl Admission {
         Admission {
             slots: slots.max(1),
             queue,
-            state: Mutex::new(Counts::default()),
-            freed: Condvar::new(),
+            state: Mutex::new(Gate::default()),
         }
     }
 
     /// Takes a place for a render, at once or not at all: refused when
     /// `slots` renders run and `queue` more hold places.
     pub fn reserve(&self) -> Result<Place<'_>, Refused> {
-        let mut counts = self.lock();
+        let mut gate = self.lock();
+        let counts = &mut gate.counts;
         if counts.running + counts.waiting >= self.slots + self.queue {
             return Err(Refused::QueueFull);
         }
         counts.waiting += 1;
         Ok(Place {
             gate: self,
+            in_line: None,
             spent: false,
         })
     }
 
     pub fn counts(&self) -> Counts {
-        *self.lock()
+        self.lock().counts
     }
 
-    fn lock(&self) -> MutexGuard<'_, Counts> {
-        // The counts stay consistent even if a holder panicked: every update
-        // is a single field change.
+    #[cfg(test)]
+    fn in_line(&self) -> usize {
+        self.lock().line.len()
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Gate> {
+        // The state stays consistent even if a holder panicked: nothing
+        // that can panic runs while it is held.
         self.state.lock().unwrap_or_else(PoisonError::into_inner)
     }
 }
 
+impl Gate {
+    /// How many of the first in line may take a slot now.
+    fn free(&self, slots: usize) -> usize {
+        slots.saturating_sub(self.counts.running)
+    }
+
+    /// Wakes those in line whose turn it is.
+    fn wake(&self, slots: usize) {
+        for waiter in self.line.iter().take(self.free(slots)) {
+            waiter.thread.unpark();
+        }
+    }
+}
+
 impl<'a> Place<'a> {
-    /// Takes a slot, waiting for one until `deadline` if all are busy.
+    /// Takes a slot, waiting in line for one until `deadline` if all are
+    /// busy or others were waiting first.
     ///
-    /// While it waits, every `poll` (and whenever it is woken without a
-    /// slot), and once more when it has its slot, it asks `gone` whether
-    /// the client has left; if so it gives its place (or slot) back at once
-    /// and the render never runs: [`Refused::Abandoned`].
+    /// While it waits, every `poll` (or whenever it wakes before its turn),
+    /// and once more when it has its slot, it asks `gone` whether the client
+    /// has left; if so it gives its place (or slot) back at once and the
+    /// render never runs: [`Refused::Abandoned`].
     pub fn enter(
         mut self,
         deadline: Instant,
         poll: Duration,
         mut gone: impl FnMut() -> bool,
     ) -> Result<Ticket<'a>, Refused> {
-        let gate = self.gate;
-        let mut counts = gate.lock();
+        let admission = self.gate;
+        let id = {
+            let mut gate = admission.lock();
+            let id = gate.next_id;
+            gate.next_id += 1;
+            gate.line.push_back(Waiter {
+                id,
+                thread: thread::current(),
+            });
+            id
+        };
+        self.in_line = Some(id);
+        let mut asked = false;
         loop {
-            if counts.running < gate.slots {
-                counts.waiting -= 1;
-                counts.running += 1;
-                self.spent = true;
-                drop(counts);
-                // Given back (and the next waiter woken) if dropped here.
-                let ticket = Ticket(gate);
-                return if gone() {
-                    Err(Refused::Abandoned)
-                } else {
-                    Ok(ticket)
-                };
-            }
-            let left = deadline.saturating_duration_since(Instant::now());
+            let left = {
+                let mut gate = admission.lock();
+                let free = gate.free(admission.slots);
+                if let Some(at) = gate.line.iter().take(free).position(|w| w.id == id) {
+                    gate.line.remove(at);
+                    gate.counts.waiting -= 1;
+                    gate.counts.running += 1;
+                    self.spent = true;
+                    drop(gate);
+                    // Given back (and the next in line woken) if dropped here.
+                    let ticket = Ticket(admission);
+                    return if gone() {
+                        Err(Refused::Abandoned)
+                    } else {
+                        Ok(ticket)
+                    };
+                }
+                deadline.saturating_duration_since(Instant::now())
+            };
+            // Dropping the place takes it out of the line.
             if left.is_zero() {
-                counts.waiting -= 1;
-                self.spent = true;
                 return Err(Refused::WaitedTooLong);
             }
-            let (woken, _) = gate
-                .freed
-                .wait_timeout(counts, left.min(poll))
-                .unwrap_or_else(PoisonError::into_inner);
-            if woken.running < gate.slots {
-                counts = woken;
-                continue;
-            }
-            // No slot yet: is anyone still waiting for this render? The
-            // lock is not held while asking. Dropping the place gives it back.
-            drop(woken);
-            if gone() {
+            if asked && gone() {
                 return Err(Refused::Abandoned);
             }
-            counts = gate.lock();
+            asked = true;
+            thread::park_timeout(left.min(poll));
         }
     }
 }
 
 impl Drop for Place<'_> {
     fn drop(&mut self) {
-        if !self.spent {
-            self.gate.lock().waiting -= 1;
+        if self.spent {
+            return;
+        }
+        let mut gate = self.gate.lock();
+        gate.counts.waiting -= 1;
+        if let Some(id) = self.in_line {
+            gate.line.retain(|w| w.id != id);
+            // It may have been woken for a slot it no longer takes.
+            gate.wake(self.gate.slots);
         }
     }
 }
 
 impl Drop for Ticket<'_> {
     fn drop(&mut self) {
-        self.0.lock().running -= 1;
-        self.0.freed.notify_one();
+        let mut gate = self.0.lock();
+        gate.counts.running -= 1;
+        gate.wake(self.0.slots);
     }
 }
 
@@ -323,6 +377,59 @@ mod tests {
         assert_eq!(refused, Some(Refused::Abandoned));
         assert_eq!(gate.counts(), Counts::default());
         assert!(enter(&gate, Instant::now()).is_ok());
+    }
+
+    #[test]
+    fn slots_go_to_the_waiters_in_the_order_they_came() {
+        let gate = Admission::new(1, 8);
+        let held = enter(&gate, Instant::now()).unwrap();
+        let order = Mutex::new(Vec::new());
+        std::thread::scope(|s| {
+            for i in 0..6 {
+                let (gate, order) = (&gate, &order);
+                s.spawn(move || {
+                    let ticket = enter(gate, Instant::now() + Duration::from_secs(10)).unwrap();
+                    order.lock().unwrap().push(i);
+                    // Hold the slot a moment: those behind wake and poll meanwhile.
+                    std::thread::sleep(POLL);
+                    drop(ticket);
+                });
+                while gate.in_line() <= i {
+                    std::thread::yield_now();
+                }
+            }
+            std::thread::sleep(3 * POLL);
+            drop(held);
+        });
+        assert_eq!(order.into_inner().unwrap(), [0, 1, 2, 3, 4, 5]);
+        assert_eq!(gate.counts(), Counts::default());
+        assert_eq!(gate.in_line(), 0);
+    }
+
+    #[test]
+    fn two_free_slots_take_the_first_two_in_line() {
+        let gate = Admission::new(2, 4);
+        let a = enter(&gate, Instant::now()).unwrap();
+        let b = enter(&gate, Instant::now()).unwrap();
+        std::thread::scope(|s| {
+            let waiters: Vec<_> = (0..2)
+                .map(|i| {
+                    let gate = &gate;
+                    let waiter = s.spawn(move || {
+                        enter(gate, Instant::now() + Duration::from_secs(10)).map(drop)
+                    });
+                    while gate.in_line() <= i {
+                        std::thread::yield_now();
+                    }
+                    waiter
+                })
+                .collect();
+            drop((a, b));
+            for waiter in waiters {
+                assert_eq!(waiter.join().unwrap(), Ok(()));
+            }
+        });
+        assert_eq!(gate.counts(), Counts::default());
     }
 
     #[test]
