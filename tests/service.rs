@@ -549,7 +549,7 @@ fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered(
     let server = start(ServiceConfig {
         concurrent_renders: 1,
         queue: 1,
-        render_timeout: Duration::from_secs(6),
+        render_timeout: Duration::from_secs(4),
         ..ServiceConfig::default()
     });
     let addr = server.addr();
@@ -557,6 +557,7 @@ fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered(
         Client::connect(addr).request("POST", "/render?spp=64", &[], &costly_scene())
     });
     wait_for_metric(addr, "voxtrace_renders_in_flight", 1);
+    let costly_started = Instant::now();
     let scene = sample("testSample.txt");
     let mut leaver = Client::connect(addr);
     let mut request = format!(
@@ -577,6 +578,9 @@ fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered(
     wait_for_metric(addr, "voxtrace_renders_abandoned_total", 1);
     wait_for_metric(addr, "voxtrace_render_queue_depth", 0);
     assert_eq!(metric(addr, "voxtrace_renders_in_flight"), Some(1));
+    // The next request takes that place. Sent late enough that its own wait
+    // for a slot (up to the same 4 s) outlasts the costly render.
+    std::thread::sleep(Duration::from_secs(2).saturating_sub(costly_started.elapsed()));
     let queued = std::thread::spawn(move || {
         Client::connect(addr).request("POST", "/render", &[], &sample("testSample.txt"))
     });

@@ -1,7 +1,6 @@
 //! Bounded admission to the render pool: at most `slots` renders run at once
-//! and at most `queue` more hold a place (their scene being parsed, or
-//! waiting for a slot); anyone past that is turned away at once (503) instead
-//! of piling up. Slots are given in the order the renders asked for them, so
+//! and at most `queue` more hold a place (waiting for a slot); anyone past
+//! that is turned away at once (503) instead of piling up. Slots are given in the order the renders asked for them, so
 //! an admitted render waits for at most the renders ahead of it in the queue.
 //! And a bound on the request bodies held in memory at once, charged as their
 //! bytes arrive.
@@ -51,7 +50,7 @@ pub enum Refused {
     Abandoned,
 }
 
-/// A place among the admitted renders, taken before the scene is parsed;
+/// A place among the admitted renders, taken before waiting for a slot;
 /// given back when dropped unless it became a [`Ticket`].
 pub struct Place<'a> {
     gate: &'a Admission,

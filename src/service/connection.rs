@@ -158,7 +158,7 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
     let wants_continue = length > 0 && head.expects_continue() && !conn.has_pending();
     if wants_continue {
         let deadline = Instant::now() + state.config.write_timeout;
-        if http::write_before(&conn.stream, http::CONTINUE, deadline).is_err() {
+        if http::write_before(&conn.stream, http::CONTINUE, &[], deadline).is_err() {
             return Step::Gone;
         }
     }

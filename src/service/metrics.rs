@@ -111,7 +111,7 @@ impl Metrics {
             (
                 "voxtrace_render_queue_depth",
                 "gauge",
-                "Renders admitted and not running yet (scene being parsed, or waiting for a slot).",
+                "Renders admitted and waiting for a slot.",
                 admission.waiting as u64,
             ),
             (

@@ -143,21 +143,9 @@ pub fn handle(
     let config = &state.config;
     let busy = |_| ApiError::busy(limits::RETRY_AFTER_S);
     let query = RenderQuery::parse(query)?;
-    // A place is taken before parsing, so the parsed scenes held at once
-    // are bounded by the queue as the bodies are by their budget.
     let place = state.admission.reserve().map_err(busy)?;
-    // The parser is parallel: it runs on the render pool too, so the
-    // service never starts rayon's global pool beside its own (which would
-    // put twice as many busy threads as `--threads` on the cores).
-    let scene = state
-        .pool
-        .install(|| scene::parse(&body))
-        .map_err(|e| ApiError::scene(&e))?;
-    drop((body, charge));
-    check_limits(&scene, &query, config)?;
-
-    // A client that leaves while its render waits gives its place back
-    // then, and the render never runs.
+    // A client that leaves while its request waits for a slot gives its
+    // place back then, and its scene is neither parsed nor rendered.
     let deadline = Instant::now() + config.render_timeout;
     let ticket = match place.enter(deadline, QUEUE_POLL, || conn.peer_closed()) {
         Ok(ticket) => ticket,
@@ -167,6 +155,19 @@ pub fn handle(
         }
         Err(refused) => return Err(busy(refused)),
     };
+    // Parsed once the slot is taken, so at most one parsed scene per slot
+    // is held (the waiting requests hold only their bodies, within their
+    // budget), and a waiting request is never stuck in a parse queued on
+    // the busy render pool, where its client's leaving would go unseen.
+    // The parser is parallel: it runs on the render pool too, so the
+    // service never starts rayon's global pool beside its own (which would
+    // put twice as many busy threads as `--threads` on the cores).
+    let scene = state
+        .pool
+        .install(|| scene::parse(&body))
+        .map_err(|e| ApiError::scene(&e))?;
+    drop((body, charge));
+    check_limits(&scene, &query, config)?;
     let options = RenderOptions {
         spp: query.spp,
         depth: query.depth,
