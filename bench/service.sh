@@ -10,7 +10,8 @@
 # "small heavy"), CONCURRENCY (throughput, default "1 2 8 64"),
 # SAT_C (saturation: connections, default 8), SAT_REPS / SAT_REPS_HEAVY (saturation: pairs of
 # runs, default 30 / 12), SAT_N / SAT_N_HEAVY (saturation: requests per run, default 300 / 16),
-# OVERLOAD_DUR (default 60s), FUZZ_COUNT (default 100000), VOXTRACE_BIN.
+# OVERLOAD_DUR (default 60s), OVERLOAD_RUNS (runs after one another on one server, default 1),
+# FUZZ_COUNT (default 100000), VOXTRACE_BIN.
 # Needs python3 (slowloris, fuzz, JSON), wrk (apt-get install -y wrk) and, for
 # instructions, valgrind (apt-get install -y valgrind).
 set -euo pipefail
@@ -28,6 +29,7 @@ SAT_REPS_HEAVY=${SAT_REPS_HEAVY:-12}
 SAT_N=${SAT_N:-300}
 SAT_N_HEAVY=${SAT_N_HEAVY:-16}
 OVERLOAD_DUR=${OVERLOAD_DUR:-60s}
+OVERLOAD_RUNS=${OVERLOAD_RUNS:-1}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
 WORK=$(mktemp -d)
 SERVER=
@@ -292,22 +294,25 @@ overload() {
     threads0=$(proc Threads)
     # Peak resident memory from here on (clear_refs 5 resets VmHWM).
     echo 5 > "/proc/$SERVER/clear_refs" 2>/dev/null || true
-    echo "    load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
-    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d "$OVERLOAD_DUR" --rate "$rate" --timeout 120s --json > "$WORK/overload.json" &
-    LOAD=$!
-    samples=""
-    while kill -0 "$LOAD" 2>/dev/null; do
-        sleep 5
-        samples="$samples $(proc VmRSS)"
+    for run in $(seq "$OVERLOAD_RUNS"); do
+        [ "$OVERLOAD_RUNS" = 1 ] || echo "    run $run of $OVERLOAD_RUNS on the same server:"
+        echo "    load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d "$OVERLOAD_DUR" --rate "$rate" --timeout 120s --json > "$WORK/overload.json" &
+        LOAD=$!
+        samples=""
+        while kill -0 "$LOAD" 2>/dev/null; do
+            sleep 5
+            samples="$samples $(proc VmRSS)"
+        done
+        wait "$LOAD"
+        echo "    load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
+        sleep 2
+        rss1=$(proc VmRSS)
+        field '"requests %d in %.1f s, status %s, transport errors %s, unfinished %d\n200: %s\n503: %s\naccepted renders/s: %.1f" % (d["requests"], d["elapsed_s"], d["status"], d["errors"], d["unfinished"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"), d["status"].get("200", 0) / d["elapsed_s"])' < "$WORK/overload.json" | sed 's/^/    /'
+        field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
+        echo "    server RSS (KiB): fresh $rss_cold; after the 10 s warm-up (baseline) $rss0; every 5 s during:$samples; peak since the warm-up $(proc VmHWM); after $rss1 ($(echo "100 * ($rss1 - $rss0) / $rss0" | bc -l | xargs printf '%+.1f')% of the baseline)"
+        echo "    threads: after the warm-up $threads0, after the run $(proc Threads); abandoned renders $(metric voxtrace_renders_abandoned_total), write timeouts $(metric voxtrace_write_timeouts_total)"
     done
-    wait "$LOAD"
-    echo "    load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
-    sleep 2
-    rss1=$(proc VmRSS)
-    field '"requests %d in %.1f s, status %s, transport errors %s, unfinished %d\n200: %s\n503: %s\naccepted renders/s: %.1f" % (d["requests"], d["elapsed_s"], d["status"], d["errors"], d["unfinished"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"), d["status"].get("200", 0) / d["elapsed_s"])' < "$WORK/overload.json" | sed 's/^/    /'
-    field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
-    echo "    server RSS (KiB): fresh $rss_cold; after the 10 s warm-up (baseline) $rss0; every 5 s during:$samples; peak $(proc VmHWM); after $rss1 ($(echo "100 * ($rss1 - $rss0) / $rss0" | bc -l | xargs printf '%+.1f')% of the baseline)"
-    echo "    threads: after the warm-up $threads0, after the run $(proc Threads); abandoned renders $(metric voxtrace_renders_abandoned_total), write timeouts $(metric voxtrace_write_timeouts_total)"
     stop_server
     echo
 }
