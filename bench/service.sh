@@ -3,11 +3,14 @@
 # wrk for comparison). Prints markdown tables.
 #
 #   cargo build --release
-#   bench/service.sh [throughput|instructions|overload|slowloris|fuzz|wrk|all]
+#   bench/service.sh [throughput|saturation|instructions|overload|slowloris|fuzz|wrk|all]
 #
 # Environment: DUR (per run, default 10s; DUR_HEAVY 40s for the heavy scene), REPS (interleaved
-# repetitions, default 5; REPS_HEAVY 3), SCENES (throughput cases, default "small heavy"),
-# CONCURRENCY (throughput, default "1 2 8 64"),
+# repetitions, default 5; REPS_HEAVY 3), SCENES (throughput and saturation cases, default
+# "small heavy"), CONCURRENCY (throughput, default "1 2 8 64"),
+# SAT_C (saturation: connections, default 8), SAT_REPS / SAT_REPS_HEAVY (saturation: pairs of
+# runs, default 30 / 12), SAT_N / SAT_N_HEAVY (saturation: requests per run, default 300 / 16),
+# OVERLOAD_DUR (default 60s), OVERLOAD_RUNS (runs after one another on one server, default 1),
 # FUZZ_COUNT (default 100000), VOXTRACE_BIN.
 # Needs python3 (slowloris, fuzz, JSON), wrk (apt-get install -y wrk) and, for
 # instructions, valgrind (apt-get install -y valgrind).
@@ -20,6 +23,13 @@ REPS=${REPS:-5}
 REPS_HEAVY=${REPS_HEAVY:-3}
 SCENES=${SCENES:-small heavy}
 CONCURRENCY=${CONCURRENCY:-1 2 8 64}
+SAT_C=${SAT_C:-8}
+SAT_REPS=${SAT_REPS:-30}
+SAT_REPS_HEAVY=${SAT_REPS_HEAVY:-12}
+SAT_N=${SAT_N:-300}
+SAT_N_HEAVY=${SAT_N_HEAVY:-16}
+OVERLOAD_DUR=${OVERLOAD_DUR:-60s}
+OVERLOAD_RUNS=${OVERLOAD_RUNS:-1}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
 WORK=$(mktemp -d)
 SERVER=
@@ -132,6 +142,91 @@ throughput() {
     echo
 }
 
+# load1: the 1-minute load average now.
+load1() { cut -d' ' -f1 /proc/loadavg; }
+
+# Many short runs at one saturating concurrency, in-process and service in
+# pairs (the order alternating), so that the machine's slow swings hit both
+# sides of a pair alike; then the distribution of the paired ratios.
+saturation() {
+    echo "### Throughput at saturation: $SAT_C connections, paired short runs"
+    echo
+    echo "Each pair is one in-process run and one service run of the same number of requests,"
+    echo "back to back, the order alternating; renders/s = requests / wall time of the run."
+    echo "Paired ratio = service / in-process within a pair. Interval: the 2.5th and 97.5th"
+    echo "percentiles of the median paired ratio over 10,000 bootstrap resamples of the pairs."
+    echo "CPU ms/render: in-process, the whole process; service, server + load client."
+    echo
+    echo "| scene | pairs × requests | in-process renders/s | service renders/s | median paired ratio | IQR of paired ratios | 95% bootstrap interval | pairs ≥ 0.95 | median CPU ratio | its 95% interval | load average |"
+    echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    start_server --body-memory 1073741824 --render-timeout-ms 120000
+    for case in "small|sample256.txt|testSample 256×256|$SAT_N|$SAT_REPS" "heavy|heavy.txt|10⁵ spheres 512×512|$SAT_N_HEAVY|$SAT_REPS_HEAVY"; do
+        IFS='|' read -r name scene label n reps <<< "$case"
+        [[ " $SCENES " == *" $name "* ]] || continue
+        : > "$WORK/pairs"
+        : > "$WORK/not_200"
+        for rep in $(seq "$reps"); do
+            order="in svc"
+            [ $((rep % 2)) = 0 ] && order="svc in"
+            load_before=$(load1)
+            for mode in $order; do
+                if [ "$mode" = in ]; then
+                    /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                        "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c "$SAT_C" -n "$n" --json > "$WORK/run.json"
+                    in=$(field 'd["renders"] / d["elapsed_s"]' < "$WORK/run.json")
+                    in_cpu=$(echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l)
+                else
+                    before=$(server_cpu)
+                    /usr/bin/time -f "%U %S" -o "$WORK/time" \
+                        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$SAT_C" -n "$n" --timeout 300s --json > "$WORK/run.json"
+                    while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
+                    after=$(server_cpu)
+                    svc=$(field 'd["renders"] / d["elapsed_s"]' < "$WORK/run.json")
+                    svc_cpu=$(echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l)
+                    field '"" if d["status"].get("200") == d["requests"] and not d["errors"] else "%s: status %s, errors %s" % ("'"$label"'", d["status"], d["errors"])' < "$WORK/run.json" >> "$WORK/not_200"
+                fi
+            done
+            echo "${order%% *} $in $svc $in_cpu $svc_cpu $load_before $(load1)" >> "$WORK/pairs"
+        done
+        cp "$WORK/pairs" "$WORK/pairs.$name"
+        python3 - "$WORK/pairs" "$label" "$reps" "$n" <<'PY'
+import random, statistics, sys
+rows = [line.split() for line in open(sys.argv[1])]
+first = [r[0] for r in rows]
+inp, svc, in_cpu, svc_cpu = ([float(r[i]) for r in rows] for i in (1, 2, 3, 4))
+loads = [float(x) for r in rows for x in r[5:7]]
+ratio = [s / i for s, i in zip(svc, inp)]
+cpu = [s / i for s, i in zip(svc_cpu, in_cpu)]
+def q(xs, p):
+    xs = sorted(xs)
+    k = (len(xs) - 1) * p
+    lo = int(k)
+    hi = min(lo + 1, len(xs) - 1)
+    return xs[lo] + (xs[hi] - xs[lo]) * (k - lo)
+def boot(xs):
+    rng = random.Random(1)
+    meds = sorted(statistics.median(rng.choices(xs, k=len(xs))) for _ in range(10000))
+    return q(meds, 0.025), q(meds, 0.975)
+lo, hi = boot(ratio)
+clo, chi = boot(cpu)
+print("| %s | %s × %s | %.2f | %.2f | %.3f | %.3f–%.3f | %.3f–%.3f | %d of %d | %.3f | %.3f–%.3f | %.1f–%.1f (median %.1f) |" % (
+    sys.argv[2], sys.argv[3], sys.argv[4], statistics.median(inp), statistics.median(svc),
+    statistics.median(ratio), q(ratio, 0.25), q(ratio, 0.75), lo, hi,
+    sum(r >= 0.95 for r in ratio), len(ratio), statistics.median(cpu), clo, chi,
+    min(loads), max(loads), statistics.median(loads)))
+by_first = {k: statistics.median([r for r, f in zip(ratio, first) if f == k]) for k in ("in", "svc") if k in first}
+print("%s: median paired ratio with in-process first %.3f, with the service first %.3f; paired ratios %s" % (
+    sys.argv[2], by_first.get("in", float("nan")), by_first.get("svc", float("nan")),
+    " ".join("%.3f" % r for r in ratio)), file=sys.stderr)
+PY
+        grep . "$WORK/not_200" | sed 's/^/not all 200: /' >&2 || true
+    done 2> "$WORK/sat_notes"
+    stop_server
+    echo
+    cat "$WORK/sat_notes"
+    echo
+}
+
 # collected FILE: the instruction count valgrind reported in FILE.
 collected() { sed -n 's/.*Collected : //p' "$1"; }
 
@@ -184,24 +279,40 @@ overload() {
     }
     sat=$(cat "$WORK/saturation")
     rate=$(echo "4 * $sat" | bc -l)
-    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), 30 s, testSample 256×256"
+    echo "### Overload: open loop at 4× saturation ($(printf %.0f "$rate") req/s vs $(printf %.1f "$sat") renders/s), $OVERLOAD_DUR, testSample 256×256"
     echo
     start_server
     sleep 0.3
+    rss_cold=$(proc VmRSS)
+    # Warm-up: the same load for 10 s. Before any render the render pool's
+    # threads have done nothing and no connection thread has run, so the
+    # resident memory of a fresh server is not what it settles at; the
+    # baseline is taken after this, once its connections have closed.
+    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 10s --rate "$rate" --json > "$WORK/warm.json"
+    sleep 2
     rss0=$(proc VmRSS)
-    "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 30s --rate "$rate" --json > "$WORK/overload.json" &
-    LOAD=$!
-    samples=""
-    for _ in $(seq 10); do
-        sleep 3
-        samples="$samples $(proc VmRSS)"
+    threads0=$(proc Threads)
+    # Peak resident memory from here on (clear_refs 5 resets VmHWM).
+    echo 5 > "/proc/$SERVER/clear_refs" 2>/dev/null || true
+    for run in $(seq "$OVERLOAD_RUNS"); do
+        [ "$OVERLOAD_RUNS" = 1 ] || echo "    run $run of $OVERLOAD_RUNS on the same server:"
+        echo "    load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d "$OVERLOAD_DUR" --rate "$rate" --timeout 120s --json > "$WORK/overload.json" &
+        LOAD=$!
+        samples=""
+        while kill -0 "$LOAD" 2>/dev/null; do
+            sleep 5
+            samples="$samples $(proc VmRSS)"
+        done
+        wait "$LOAD"
+        echo "    load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
+        sleep 2
+        rss1=$(proc VmRSS)
+        field '"requests %d in %.1f s, status %s, transport errors %s, unfinished %d\n200: %s\n503: %s\naccepted renders/s: %.1f" % (d["requests"], d["elapsed_s"], d["status"], d["errors"], d["unfinished"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"), d["status"].get("200", 0) / d["elapsed_s"])' < "$WORK/overload.json" | sed 's/^/    /'
+        field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
+        echo "    server RSS (KiB): fresh $rss_cold; after the 10 s warm-up (baseline) $rss0; every 5 s during:$samples; peak since the warm-up $(proc VmHWM); after $rss1 ($(echo "100 * ($rss1 - $rss0) / $rss0" | bc -l | xargs printf '%+.1f')% of the baseline)"
+        echo "    threads: after the warm-up $threads0, after the run $(proc Threads); abandoned renders $(metric voxtrace_renders_abandoned_total), write timeouts $(metric voxtrace_write_timeouts_total)"
     done
-    wait "$LOAD"
-    sleep 1
-    threads=$(proc Threads)
-    field '"requests %d, status %s, transport errors %s\n200: %s\n503: %s" % (d["requests"], d["status"], d["errors"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"))' < "$WORK/overload.json" | sed 's/^/    /'
-    field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'
-    echo "    server RSS (KiB): before $rss0, every 3 s during:$samples; peak $(proc VmHWM); threads after: $threads"
     stop_server
     echo
 }
@@ -273,11 +384,12 @@ wrk_compare() {
 what=${1:-all}
 case "$what" in
     throughput) throughput ;;
+    saturation) saturation ;;
     instructions) instructions ;;
     overload) overload ;;
     slowloris) slowloris ;;
     fuzz) fuzz ;;
     wrk) wrk_compare ;;
-    all) throughput; instructions; overload; slowloris; fuzz; wrk_compare ;;
-    *) echo "usage: $0 [throughput|instructions|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
+    all) throughput; saturation; instructions; overload; slowloris; fuzz; wrk_compare ;;
+    *) echo "usage: $0 [throughput|saturation|instructions|overload|slowloris|fuzz|wrk|all]" >&2; exit 2 ;;
 esac

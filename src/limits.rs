@@ -59,7 +59,10 @@ pub const DEFAULT_IDLE_TIMEOUT_MS: u64 = 5_000;
 pub const DEFAULT_HEAD_TIMEOUT_MS: u64 = 10_000;
 /// Time to receive a whole request body; past it, 408.
 pub const DEFAULT_BODY_TIMEOUT_MS: u64 = 30_000;
-/// Time a single write to a client may block.
-pub const DEFAULT_WRITE_TIMEOUT_MS: u64 = 10_000;
+/// Time to write one whole response: a deadline on all its writes together,
+/// so a client that reads a byte at a time cannot hold a connection forever.
+/// As long as a body's: the largest image (a 4096 × 4096 PPM, 48 MiB) then
+/// needs a client taking 1.6 MiB/s.
+pub const DEFAULT_WRITE_TIMEOUT_MS: u64 = 30_000;
 /// What `Retry-After` tells a client turned away by a full queue, in seconds.
 pub const RETRY_AFTER_S: u32 = 1;

@@ -4,6 +4,8 @@
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use voxtrace::service::{Server, ServerHandle, ServiceConfig};
 
@@ -160,22 +162,26 @@ fn costly_scene() -> Vec<u8> {
     text.into_bytes()
 }
 
+/// The value of `metric` (the whole series name, labels included) in `/metrics`.
+fn metric(addr: SocketAddr, metric: &str) -> Option<u64> {
+    let text = Client::connect(addr)
+        .request("GET", "/metrics", &[], b"")
+        .text();
+    text.lines()
+        .find_map(|l| l.strip_prefix(metric)?.strip_prefix(' ')?.parse().ok())
+}
+
 /// Polls `/metrics` until `metric` reaches `value`.
-fn wait_for_metric(addr: SocketAddr, metric: &str, value: u64) {
+fn wait_for_metric(addr: SocketAddr, metric_name: &str, value: u64) {
     let started = Instant::now();
     loop {
-        let text = Client::connect(addr)
-            .request("GET", "/metrics", &[], b"")
-            .text();
-        let now = text
-            .lines()
-            .find_map(|l| l.strip_prefix(metric)?.trim().parse::<u64>().ok());
+        let now = metric(addr, metric_name);
         if now == Some(value) {
             return;
         }
         assert!(
             started.elapsed() < Duration::from_secs(20),
-            "{metric} never reached {value}:\n{text}"
+            "{metric_name} never reached {value} (it is {now:?})"
         );
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -537,6 +543,67 @@ fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
 }
 
 #[test]
+fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered() {
+    // One slot and one place in the queue. A costly render holds the slot
+    // until its budget; a second client queues behind it, then leaves.
+    let server = start(ServiceConfig {
+        concurrent_renders: 1,
+        queue: 1,
+        render_timeout: Duration::from_secs(4),
+        ..ServiceConfig::default()
+    });
+    let addr = server.addr();
+    let costly = std::thread::spawn(move || {
+        Client::connect(addr).request("POST", "/render?spp=64", &[], &costly_scene())
+    });
+    wait_for_metric(addr, "voxtrace_renders_in_flight", 1);
+    let costly_started = Instant::now();
+    let scene = sample("testSample.txt");
+    let mut leaver = Client::connect(addr);
+    let mut request = format!(
+        "POST /render HTTP/1.1\r\nHost: t\r\nContent-Length: {}\r\n\r\n",
+        scene.len()
+    )
+    .into_bytes();
+    request.extend_from_slice(&scene);
+    leaver.send(&request);
+    wait_for_metric(addr, "voxtrace_render_queue_depth", 1);
+    // The queue is full while it waits.
+    let full = Client::connect(addr).request("POST", "/render", &[], &scene);
+    assert_eq!(full.status, 503);
+
+    drop(leaver);
+    // Its place is given back while the costly render still holds the slot:
+    // it no longer counts against the queue, and it is never rendered.
+    wait_for_metric(addr, "voxtrace_renders_abandoned_total", 1);
+    wait_for_metric(addr, "voxtrace_render_queue_depth", 0);
+    assert_eq!(metric(addr, "voxtrace_renders_in_flight"), Some(1));
+    // The next request takes that place. Sent late enough that its own wait
+    // for a slot (up to the same 4 s) outlasts the costly render.
+    std::thread::sleep(Duration::from_secs(2).saturating_sub(costly_started.elapsed()));
+    let queued = std::thread::spawn(move || {
+        Client::connect(addr).request("POST", "/render", &[], &sample("testSample.txt"))
+    });
+    wait_for_metric(addr, "voxtrace_render_queue_depth", 1);
+
+    assert_eq!(costly.join().unwrap().status, 422);
+    let reply = queued.join().unwrap();
+    assert_eq!(reply.status, 200, "{}", reply.text());
+    // Only that last render ran: the costly one stopped at its budget
+    // (not counted as completed), the abandoned one never started.
+    assert_eq!(metric(addr, "voxtrace_renders_total"), Some(1));
+    let rays: u64 = reply.header("x-rays").unwrap().parse().unwrap();
+    assert_eq!(metric(addr, "voxtrace_rays_total"), Some(rays));
+    assert_eq!(
+        metric(
+            addr,
+            "voxtrace_requests_total{route=\"/render\",status=\"499\"}"
+        ),
+        Some(1)
+    );
+}
+
+#[test]
 fn sixteen_concurrent_clients_are_all_served_correctly() {
     let server = start(ServiceConfig::default());
     let scenes = [
@@ -750,4 +817,71 @@ fn bodies_past_the_memory_budget_get_503_and_the_connection_stays_usable() {
     drop(holder);
     wait_for_metric(server.addr(), "voxtrace_body_bytes", 0);
     assert_eq!(client.request("POST", "/render", &[], &scene).status, 200);
+}
+
+#[test]
+fn a_client_reading_slowly_is_cut_off_at_the_write_deadline() {
+    // 12 MB of PPM, read 64 KiB every 100 ms: every single write makes
+    // progress (the whole response would take some 20 s), but the write
+    // timeout bounds the whole response, so the server gives up after 1 s.
+    let write_timeout = Duration::from_secs(1);
+    let server = start(ServiceConfig {
+        write_timeout,
+        ..ServiceConfig::default()
+    });
+    let addr = server.addr();
+    let scene = b"NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 2048 2048\n";
+    let full_length = 2048 * 2048 * 3;
+    let mut slow = TcpStream::connect(addr).unwrap();
+    slow.set_read_timeout(Some(Duration::from_secs(30)))
+        .unwrap();
+    let mut request = format!(
+        "POST /render?format=ppm HTTP/1.1\r\nHost: t\r\nContent-Length: {}\r\n\r\n",
+        scene.len()
+    )
+    .into_bytes();
+    request.extend_from_slice(scene);
+    slow.write_all(&request).unwrap();
+    let sent = Instant::now();
+    let hurry = Arc::new(AtomicBool::new(false));
+    let reader = std::thread::spawn({
+        let hurry = Arc::clone(&hurry);
+        move || {
+            let mut chunk = vec![0u8; 64 * 1024];
+            let mut received = 0;
+            loop {
+                match slow.read(&mut chunk) {
+                    Ok(0) | Err(_) => return received,
+                    Ok(n) => received += n,
+                }
+                if !hurry.load(Ordering::Relaxed) {
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            }
+        }
+    });
+    // Others are served meanwhile.
+    assert_eq!(
+        Client::connect(addr)
+            .request("GET", "/healthz", &[], b"")
+            .status,
+        200
+    );
+    wait_for_metric(addr, "voxtrace_write_timeouts_total", 1);
+    let cut = sent.elapsed();
+    // Its render (well under a second) plus the write deadline, with room
+    // for a busy machine; a per-write timeout would let it run 20 s.
+    assert!(
+        cut >= write_timeout && cut < Duration::from_secs(8),
+        "cut off after {cut:?}"
+    );
+    // The connection is closed: the client gets what was already in the
+    // sockets' buffers, then the end, short of the whole image.
+    hurry.store(true, Ordering::Relaxed);
+    let received = reader.join().unwrap();
+    assert!(received < full_length, "received {received} bytes");
+    let mut client = Client::connect(addr);
+    assert_eq!(client.request("GET", "/healthz", &[], b"").status, 200);
+    // Open now: that client and the /metrics request.
+    wait_for_metric(addr, "voxtrace_open_connections", 2);
 }

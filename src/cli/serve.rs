@@ -47,7 +47,8 @@ pub struct ServeArgs {
     /// Time to receive a request body, in milliseconds (then 408).
     #[arg(long, default_value_t = limits::DEFAULT_BODY_TIMEOUT_MS)]
     body_timeout_ms: u64,
-    /// Longest a single write to a client may block, in milliseconds.
+    /// Time to write one whole response to a client, in milliseconds; a
+    /// client that takes it slower is cut off.
     #[arg(long, default_value_t = limits::DEFAULT_WRITE_TIMEOUT_MS)]
     write_timeout_ms: u64,
     /// Render threads (default: all cores).

@@ -1,18 +1,20 @@
 //! Bounded admission to the render pool: at most `slots` renders run at once
-//! and at most `queue` more hold a place (their scene being parsed, or
-//! waiting for a slot); anyone past that is turned away at once (503) instead
-//! of piling up. And a bound on the request bodies held in memory at once,
-//! charged as their bytes arrive.
+//! and at most `queue` more hold a place (waiting for a slot); anyone past
+//! that is turned away at once (503) instead of piling up. Slots are given in the order the renders asked for them, so
+//! an admitted render waits for at most the renders ahead of it in the queue.
+//! And a bound on the request bodies held in memory at once, charged as their
+//! bytes arrive.
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
-use std::time::Instant;
+use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::thread::{self, Thread};
+use std::time::{Duration, Instant};
 
 pub struct Admission {
     slots: usize,
     queue: usize,
-    state: Mutex<Counts>,
-    freed: Condvar,
+    state: Mutex<Gate>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -22,6 +24,21 @@ pub struct Counts {
     pub waiting: usize,
 }
 
+/// The gate's state behind its lock.
+#[derive(Default)]
+struct Gate {
+    counts: Counts,
+    /// The renders waiting for a slot, first come first.
+    line: VecDeque<Waiter>,
+    next_id: u64,
+}
+
+struct Waiter {
+    id: u64,
+    /// Unparked when a slot may be its.
+    thread: Thread,
+}
+
 /// Why a render was not admitted.
 #[derive(Debug, PartialEq, Eq)]
 pub enum Refused {
@@ -29,13 +46,17 @@ pub enum Refused {
     QueueFull,
     /// Waited in the queue until the deadline.
     WaitedTooLong,
+    /// The client left while the render waited: nobody wants it any more.
+    Abandoned,
 }
 
-/// A place among the admitted renders, taken before the scene is parsed;
+/// A place among the admitted renders, taken before waiting for a slot;
 /// given back when dropped unless it became a [`Ticket`].
 pub struct Place<'a> {
     gate: &'a Admission,
-    /// Turned into a ticket (or refused at its deadline): nothing to give back.
+    /// Its id in the line, once it waits for a slot.
+    in_line: Option<u64>,
+    /// Turned into a ticket: nothing to give back.
     spent: bool,
 }
 
@@ -47,75 +68,136 @@ impl Admission {
         Admission {
             slots: slots.max(1),
             queue,
-            state: Mutex::new(Counts::default()),
-            freed: Condvar::new(),
+            state: Mutex::new(Gate::default()),
         }
     }
 
     /// Takes a place for a render, at once or not at all: refused when
     /// `slots` renders run and `queue` more hold places.
     pub fn reserve(&self) -> Result<Place<'_>, Refused> {
-        let mut counts = self.lock();
+        let mut gate = self.lock();
+        let counts = &mut gate.counts;
         if counts.running + counts.waiting >= self.slots + self.queue {
             return Err(Refused::QueueFull);
         }
         counts.waiting += 1;
         Ok(Place {
             gate: self,
+            in_line: None,
             spent: false,
         })
     }
 
     pub fn counts(&self) -> Counts {
-        *self.lock()
+        self.lock().counts
     }
 
-    fn lock(&self) -> MutexGuard<'_, Counts> {
-        // The counts stay consistent even if a holder panicked: every update
-        // is a single field change.
+    #[cfg(test)]
+    fn in_line(&self) -> usize {
+        self.lock().line.len()
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Gate> {
+        // The state stays consistent even if a holder panicked: nothing
+        // that can panic runs while it is held.
         self.state.lock().unwrap_or_else(PoisonError::into_inner)
     }
 }
 
-impl<'a> Place<'a> {
-    /// Takes a slot, waiting for one until `deadline` if all are busy.
-    pub fn enter(mut self, deadline: Instant) -> Result<Ticket<'a>, Refused> {
-        let gate = self.gate;
-        self.spent = true;
-        let mut counts = gate.lock();
-        loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if counts.running < gate.slots || left.is_zero() {
-                break;
-            }
-            counts = gate
-                .freed
-                .wait_timeout(counts, left)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
+impl Gate {
+    /// How many of the first in line may take a slot now.
+    fn free(&self, slots: usize) -> usize {
+        slots.saturating_sub(self.counts.running)
+    }
+
+    /// Wakes those in line whose turn it is.
+    fn wake(&self, slots: usize) {
+        for waiter in self.line.iter().take(self.free(slots)) {
+            waiter.thread.unpark();
         }
-        counts.waiting -= 1;
-        if counts.running < gate.slots {
-            counts.running += 1;
-            Ok(Ticket(gate))
-        } else {
-            Err(Refused::WaitedTooLong)
+    }
+}
+
+impl<'a> Place<'a> {
+    /// Takes a slot, waiting in line for one until `deadline` if all are
+    /// busy or others were waiting first.
+    ///
+    /// While it waits, every `poll` (or whenever it wakes before its turn),
+    /// and once more when it has its slot, it asks `gone` whether the client
+    /// has left; if so it gives its place (or slot) back at once and the
+    /// render never runs: [`Refused::Abandoned`].
+    pub fn enter(
+        mut self,
+        deadline: Instant,
+        poll: Duration,
+        mut gone: impl FnMut() -> bool,
+    ) -> Result<Ticket<'a>, Refused> {
+        let admission = self.gate;
+        let id = {
+            let mut gate = admission.lock();
+            let id = gate.next_id;
+            gate.next_id += 1;
+            gate.line.push_back(Waiter {
+                id,
+                thread: thread::current(),
+            });
+            id
+        };
+        self.in_line = Some(id);
+        let mut asked = false;
+        loop {
+            let left = {
+                let mut gate = admission.lock();
+                let free = gate.free(admission.slots);
+                if let Some(at) = gate.line.iter().take(free).position(|w| w.id == id) {
+                    gate.line.remove(at);
+                    gate.counts.waiting -= 1;
+                    gate.counts.running += 1;
+                    self.spent = true;
+                    drop(gate);
+                    // Given back (and the next in line woken) if dropped here.
+                    let ticket = Ticket(admission);
+                    return if gone() {
+                        Err(Refused::Abandoned)
+                    } else {
+                        Ok(ticket)
+                    };
+                }
+                deadline.saturating_duration_since(Instant::now())
+            };
+            // Dropping the place takes it out of the line.
+            if left.is_zero() {
+                return Err(Refused::WaitedTooLong);
+            }
+            if asked && gone() {
+                return Err(Refused::Abandoned);
+            }
+            asked = true;
+            thread::park_timeout(left.min(poll));
         }
     }
 }
 
 impl Drop for Place<'_> {
     fn drop(&mut self) {
-        if !self.spent {
-            self.gate.lock().waiting -= 1;
+        if self.spent {
+            return;
+        }
+        let mut gate = self.gate.lock();
+        gate.counts.waiting -= 1;
+        if let Some(id) = self.in_line {
+            gate.line.retain(|w| w.id != id);
+            // It may have been woken for a slot it no longer takes.
+            gate.wake(self.gate.slots);
         }
     }
 }
 
 impl Drop for Ticket<'_> {
     fn drop(&mut self) {
-        self.0.lock().running -= 1;
-        self.0.freed.notify_one();
+        let mut gate = self.0.lock();
+        gate.counts.running -= 1;
+        gate.wake(self.0.slots);
     }
 }
 
@@ -183,8 +265,10 @@ mod tests {
     use super::*;
     use std::time::Duration;
 
+    const POLL: Duration = Duration::from_millis(5);
+
     fn enter(gate: &Admission, deadline: Instant) -> Result<Ticket<'_>, Refused> {
-        gate.reserve()?.enter(deadline)
+        gate.reserve()?.enter(deadline, POLL, || false)
     }
 
     #[test]
@@ -220,7 +304,7 @@ mod tests {
         assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
         drop(parsing);
         assert_eq!(gate.counts().waiting, 1);
-        let ticket = second.enter(Instant::now()).unwrap();
+        let ticket = second.enter(Instant::now(), POLL, || false).unwrap();
         assert_eq!(
             gate.counts(),
             Counts {
@@ -247,6 +331,104 @@ mod tests {
                 waiting: 0
             }
         );
+    }
+
+    #[test]
+    fn a_waiter_whose_client_left_gives_its_place_back_before_a_slot_frees() {
+        use std::sync::atomic::AtomicBool;
+        let gate = Admission::new(1, 1);
+        let held = enter(&gate, Instant::now()).unwrap();
+        let left = AtomicBool::new(false);
+        std::thread::scope(|s| {
+            let waiter = s.spawn(|| {
+                let place = gate.reserve().unwrap();
+                place
+                    .enter(Instant::now() + Duration::from_secs(10), POLL, || {
+                        left.load(Ordering::Relaxed)
+                    })
+                    .map(|_| ())
+            });
+            while gate.counts().waiting == 0 {
+                std::thread::yield_now();
+            }
+            assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
+            left.store(true, Ordering::Relaxed);
+            assert_eq!(waiter.join().unwrap(), Err(Refused::Abandoned));
+        });
+        // The slot was never taken; the place is free for another render.
+        assert_eq!(
+            gate.counts(),
+            Counts {
+                running: 1,
+                waiting: 0
+            }
+        );
+        assert!(gate.reserve().is_ok());
+        drop(held);
+        assert_eq!(gate.counts(), Counts::default());
+    }
+
+    #[test]
+    fn a_slot_is_given_back_when_its_client_is_found_gone() {
+        let gate = Admission::new(1, 0);
+        let place = gate.reserve().unwrap();
+        let refused = place.enter(Instant::now(), POLL, || true).err();
+        assert_eq!(refused, Some(Refused::Abandoned));
+        assert_eq!(gate.counts(), Counts::default());
+        assert!(enter(&gate, Instant::now()).is_ok());
+    }
+
+    #[test]
+    fn slots_go_to_the_waiters_in_the_order_they_came() {
+        let gate = Admission::new(1, 8);
+        let held = enter(&gate, Instant::now()).unwrap();
+        let order = Mutex::new(Vec::new());
+        std::thread::scope(|s| {
+            for i in 0..6 {
+                let (gate, order) = (&gate, &order);
+                s.spawn(move || {
+                    let ticket = enter(gate, Instant::now() + Duration::from_secs(10)).unwrap();
+                    order.lock().unwrap().push(i);
+                    // Hold the slot a moment: those behind wake and poll meanwhile.
+                    std::thread::sleep(POLL);
+                    drop(ticket);
+                });
+                while gate.in_line() <= i {
+                    std::thread::yield_now();
+                }
+            }
+            std::thread::sleep(3 * POLL);
+            drop(held);
+        });
+        assert_eq!(order.into_inner().unwrap(), [0, 1, 2, 3, 4, 5]);
+        assert_eq!(gate.counts(), Counts::default());
+        assert_eq!(gate.in_line(), 0);
+    }
+
+    #[test]
+    fn two_free_slots_take_the_first_two_in_line() {
+        let gate = Admission::new(2, 4);
+        let a = enter(&gate, Instant::now()).unwrap();
+        let b = enter(&gate, Instant::now()).unwrap();
+        std::thread::scope(|s| {
+            let waiters: Vec<_> = (0..2)
+                .map(|i| {
+                    let gate = &gate;
+                    let waiter = s.spawn(move || {
+                        enter(gate, Instant::now() + Duration::from_secs(10)).map(drop)
+                    });
+                    while gate.in_line() <= i {
+                        std::thread::yield_now();
+                    }
+                    waiter
+                })
+                .collect();
+            drop((a, b));
+            for waiter in waiters {
+                assert_eq!(waiter.join().unwrap(), Ok(()));
+            }
+        });
+        assert_eq!(gate.counts(), Counts::default());
     }
 
     #[test]

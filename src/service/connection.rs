@@ -6,7 +6,7 @@ use super::http::{self, BodyFraming, Connection, ReadError, RequestHead, Respons
 use super::registry::Slot;
 use super::routes;
 use super::State;
-use std::io::Write;
+use std::io;
 use std::net::TcpStream;
 use std::sync::Arc;
 use std::time::Instant;
@@ -23,7 +23,6 @@ enum Step {
 /// server stops. `slot` is the connection's place among the open ones.
 pub fn serve(state: &State, slot: &Slot, stream: Arc<TcpStream>, accepted: Instant) {
     let _ = stream.set_nodelay(true);
-    let _ = stream.set_write_timeout(Some(state.config.write_timeout));
     let mut conn = Connection::new(stream, accepted);
     let timeouts = state.config.timeouts();
     while slot.await_request() {
@@ -59,9 +58,28 @@ fn refuse(state: &State, conn: &Connection, error: ReadError) {
         ReadError::OverBudget => busy(),
     };
     state.metrics.request("other", error.status);
-    let _ = error
-        .into_response(false)
-        .write_to(&conn.stream, false, false);
+    let response = error.into_response(false);
+    let _ = write_response(state, conn, &response, false, false);
+}
+
+/// Writes a response within the write timeout, which bounds the whole
+/// response; a client too slow to take it in time is counted and cut off.
+fn write_response(
+    state: &State,
+    conn: &Connection,
+    response: &Response,
+    head_only: bool,
+    keep: bool,
+) -> io::Result<()> {
+    let deadline = Instant::now() + state.config.write_timeout;
+    let written = response.write_to(&conn.stream, head_only, keep, deadline);
+    if written
+        .as_ref()
+        .is_err_and(|e| e.kind() == io::ErrorKind::TimedOut)
+    {
+        state.metrics.write_timed_out();
+    }
+    written
 }
 
 /// Answers one request; whether the connection stays open for the next.
@@ -76,7 +94,7 @@ fn answer(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         Step::Reply { response, keep } => {
             state.metrics.request(route, response.status);
             let keep = keep && head.wants_keep_alive() && !state.stopping();
-            let written = response.write_to(&conn.stream, head.method == "HEAD", keep);
+            let written = write_response(state, conn, &response, head.method == "HEAD", keep);
             written.is_ok() && keep
         }
     }
@@ -138,8 +156,11 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         );
     }
     let wants_continue = length > 0 && head.expects_continue() && !conn.has_pending();
-    if wants_continue && (&*conn.stream).write_all(http::CONTINUE).is_err() {
-        return Step::Gone;
+    if wants_continue {
+        let deadline = Instant::now() + state.config.write_timeout;
+        if http::write_before(&conn.stream, http::CONTINUE, &[], deadline).is_err() {
+            return Step::Gone;
+        }
     }
     // Only a scene is kept; any other body is read and thrown away.
     let (length, timeout) = (length as usize, state.config.body_timeout);

@@ -5,7 +5,7 @@
 use super::admission::Charge;
 use crate::limits;
 use std::fmt::Write as _;
-use std::io::{self, Read, Write};
+use std::io::{self, IoSlice, Read, Write};
 use std::net::TcpStream;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -16,9 +16,12 @@ const READ_CHUNK: usize = 4096;
 /// size and doubles as its bytes arrive, so it is never more than twice
 /// what arrived (plus this) and a large body is moved only a few times.
 const BODY_CHUNK: usize = 64 * 1024;
-/// The shortest socket read timeout (std refuses zero, which to the OS
-/// means none at all).
-const MIN_READ_TIMEOUT: Duration = Duration::from_millis(1);
+/// Bytes handed to the socket per write of a response, so that the time
+/// left is judged between writes.
+const WRITE_CHUNK: usize = 64 * 1024;
+/// The shortest socket read or write timeout (std refuses zero, which to
+/// the OS means none at all).
+const MIN_SOCKET_TIMEOUT: Duration = Duration::from_millis(1);
 
 /// How long each phase of a request may take. Each is a deadline on the
 /// phase's whole time, not on one read: a client that trickles a byte at a
@@ -288,7 +291,7 @@ impl Connection {
                 return Err(ReadError::Stalled);
             };
             self.stream
-                .set_read_timeout(Some(left.max(MIN_READ_TIMEOUT)))
+                .set_read_timeout(Some(left.max(MIN_SOCKET_TIMEOUT)))
                 .map_err(|_| ReadError::Io)?;
             match (&*self.stream).read(buf) {
                 Ok(0) => return Err(ReadError::Closed),
@@ -306,7 +309,7 @@ impl Connection {
 
     fn read_some(&mut self, timeout: Duration) -> io::Result<usize> {
         self.stream
-            .set_read_timeout(Some(timeout.max(MIN_READ_TIMEOUT)))?;
+            .set_read_timeout(Some(timeout.max(MIN_SOCKET_TIMEOUT)))?;
         let mut chunk = [0u8; READ_CHUNK];
         let n = (&*self.stream).read(&mut chunk)?;
         self.pending.extend_from_slice(&chunk[..n]);
@@ -387,9 +390,9 @@ impl Response {
         self
     }
 
-    /// The whole response as one buffer, so it leaves in one write. A HEAD
-    /// response has the headers (Content-Length included) without the body.
-    pub fn to_bytes(&self, head_only: bool, keep_alive: bool) -> Vec<u8> {
+    /// The status line and headers (Content-Length included, also for a
+    /// HEAD response, which has no body).
+    pub fn head(&self, keep_alive: bool) -> Vec<u8> {
         let mut head = format!("HTTP/1.1 {} {}\r\n", self.status, reason(self.status));
         for (name, value) in &self.headers {
             let _ = write!(head, "{name}: {value}\r\n");
@@ -400,22 +403,58 @@ impl Response {
         } else {
             "Connection: close\r\n\r\n"
         });
-        let mut out = head.into_bytes();
-        if !head_only {
-            out.extend_from_slice(&self.body);
-        }
-        out
+        head.into_bytes()
     }
 
+    /// Writes the response, all of it before `deadline` (see
+    /// [`write_before`]); head and body leave together, without copying the
+    /// body into one buffer with the head.
     pub fn write_to(
         &self,
-        mut stream: &TcpStream,
+        stream: &TcpStream,
         head_only: bool,
         keep_alive: bool,
+        deadline: Instant,
     ) -> io::Result<()> {
-        stream.write_all(&self.to_bytes(head_only, keep_alive))?;
-        stream.flush()
+        let body: &[u8] = if head_only { &[] } else { &self.body };
+        write_before(stream, &self.head(keep_alive), body, deadline)
     }
+}
+
+/// Writes all of `head` then `body` before `deadline`, or fails with
+/// [`io::ErrorKind::TimedOut`]. The deadline bounds the whole write, not
+/// each call: a client that reads a byte at a time makes every single
+/// write progress, yet is cut off at the deadline like one that reads
+/// nothing. Each (vectored) write of at most [`WRITE_CHUNK`] bytes blocks
+/// with the time left as its socket timeout.
+pub fn write_before(
+    mut stream: &TcpStream,
+    head: &[u8],
+    body: &[u8],
+    deadline: Instant,
+) -> io::Result<()> {
+    let total = head.len() + body.len();
+    let mut sent = 0;
+    while sent < total {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                "the client did not take the response in time",
+            ));
+        }
+        stream.set_write_timeout(Some(left.max(MIN_SOCKET_TIMEOUT)))?;
+        let end = total.min(sent + WRITE_CHUNK);
+        let in_head = &head[sent.min(head.len())..end.min(head.len())];
+        let in_body = &body[sent.saturating_sub(head.len())..end.saturating_sub(head.len())];
+        match stream.write_vectored(&[IoSlice::new(in_head), IoSlice::new(in_body)]) {
+            Ok(0) => return Err(io::ErrorKind::WriteZero.into()),
+            Ok(n) => sent += n,
+            Err(e) if is_timeout(&e) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    stream.flush()
 }
 
 /// The interim response that tells a client to send the body it announced.
@@ -498,12 +537,48 @@ mod tests {
     }
 
     #[test]
+    fn write_before_sends_head_then_body_across_many_writes() {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let client = TcpStream::connect(listener.local_addr().unwrap()).unwrap();
+        let (server, _) = listener.accept().unwrap();
+        let head = b"HTTP/1.1 200 OK\r\n\r\n".to_vec();
+        let body: Vec<u8> = (0..3 * WRITE_CHUNK + 7).map(|i| (i % 251) as u8).collect();
+        let reader = std::thread::spawn(move || {
+            let mut got = Vec::new();
+            (&client).read_to_end(&mut got).unwrap();
+            got
+        });
+        let deadline = Instant::now() + Duration::from_secs(10);
+        write_before(&server, &head, &body, deadline).unwrap();
+        drop(server);
+        assert_eq!(reader.join().unwrap(), [head, body].concat());
+    }
+
+    #[test]
+    fn write_before_gives_up_at_its_deadline() {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        // Connected, never read: the socket buffers fill, then the write waits.
+        let _client = TcpStream::connect(listener.local_addr().unwrap()).unwrap();
+        let (server, _) = listener.accept().unwrap();
+        let body = vec![0u8; 64 * 1024 * 1024];
+        let started = Instant::now();
+        let deadline = started + Duration::from_millis(200);
+        let error = write_before(&server, b"", &body, deadline).unwrap_err();
+        assert_eq!(error.kind(), io::ErrorKind::TimedOut);
+        let took = started.elapsed();
+        assert!(
+            took >= Duration::from_millis(200) && took < Duration::from_secs(5),
+            "{took:?}"
+        );
+    }
+
+    #[test]
     fn head_responses_keep_the_length_but_drop_the_body() {
         let r = Response::new(200, "text/plain", "ok\n");
-        let full = String::from_utf8(r.to_bytes(false, true)).unwrap();
+        let full = String::from_utf8([r.head(true), r.body.clone()].concat()).unwrap();
         assert!(full.starts_with("HTTP/1.1 200 OK\r\n"));
         assert!(full.contains("Content-Length: 3\r\n") && full.ends_with("keep-alive\r\n\r\nok\n"));
-        let head = String::from_utf8(r.to_bytes(true, false)).unwrap();
+        let head = String::from_utf8(r.head(false)).unwrap();
         assert!(
             head.contains("Content-Length: 3\r\n") && head.ends_with("Connection: close\r\n\r\n")
         );

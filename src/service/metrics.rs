@@ -24,6 +24,10 @@ pub struct Metrics {
     /// Sum of render times in microseconds.
     render_micros: AtomicU64,
     open_connections: AtomicU64,
+    /// Renders dropped before they started: their client had left.
+    renders_abandoned: AtomicU64,
+    /// Responses cut off: the client did not take them within the write timeout.
+    write_timeouts: AtomicU64,
 }
 
 impl Metrics {
@@ -43,6 +47,14 @@ impl Metrics {
         self.render_buckets[bucket].fetch_add(1, Ordering::Relaxed);
         let micros = u64::try_from(time.as_micros()).unwrap_or(u64::MAX);
         self.render_micros.fetch_add(micros, Ordering::Relaxed);
+    }
+
+    pub fn render_abandoned(&self) {
+        self.renders_abandoned.fetch_add(1, Ordering::Relaxed);
+    }
+
+    pub fn write_timed_out(&self) {
+        self.write_timeouts.fetch_add(1, Ordering::Relaxed);
     }
 
     pub fn connection_opened(&self) {
@@ -79,6 +91,18 @@ impl Metrics {
                 load(&self.renders),
             ),
             (
+                "voxtrace_renders_abandoned_total",
+                "counter",
+                "Renders dropped before they started because their client had left.",
+                load(&self.renders_abandoned),
+            ),
+            (
+                "voxtrace_write_timeouts_total",
+                "counter",
+                "Responses cut off because the client did not take them within the write timeout.",
+                load(&self.write_timeouts),
+            ),
+            (
                 "voxtrace_rays_total",
                 "counter",
                 "Rays traced by completed renders.",
@@ -87,7 +111,7 @@ impl Metrics {
             (
                 "voxtrace_render_queue_depth",
                 "gauge",
-                "Renders admitted and not running yet (scene being parsed, or waiting for a slot).",
+                "Renders admitted and waiting for a slot.",
                 admission.waiting as u64,
             ),
             (
@@ -146,6 +170,9 @@ mod tests {
         m.request("/render", 503);
         m.render(Duration::from_millis(20), 1000);
         m.render(Duration::from_secs(60), 5);
+        m.render_abandoned();
+        m.write_timed_out();
+        m.write_timed_out();
         let text = m.render_text(
             Counts {
                 running: 1,
@@ -156,6 +183,9 @@ mod tests {
         assert!(text.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 2\n"));
         assert!(text.contains("voxtrace_requests_total{route=\"/render\",status=\"503\"} 1\n"));
         assert!(text.contains("voxtrace_rays_total 1005\n"));
+        assert!(text.contains("voxtrace_renders_total 2\n"));
+        assert!(text.contains("voxtrace_renders_abandoned_total 1\n"));
+        assert!(text.contains("voxtrace_write_timeouts_total 2\n"));
         assert!(text.contains("voxtrace_render_queue_depth 3\n"));
         assert!(text.contains("voxtrace_renders_in_flight 1\n"));
         assert!(text.contains("voxtrace_body_bytes 4096\n"));

@@ -36,6 +36,9 @@ use std::time::{Duration, Instant};
 /// routing and encoding, none of it recursive; the render runs on the render
 /// pool's threads. Only the pages a thread touches become resident.
 const CONNECTION_STACK_BYTES: usize = 256 * 1024;
+/// How long the acceptor spends telling a connection over the cap that the
+/// service is busy, before closing it regardless.
+const TURN_AWAY_WRITE: Duration = Duration::from_millis(100);
 
 /// Everything the service can be told; each field has a default in
 /// [`limits`] and a flag of `voxtrace serve`.
@@ -245,11 +248,10 @@ fn serve_connection(state: &State, id: u64, stream: Arc<TcpStream>, accepted: In
 
 /// Too many connections are open: say so and close, at once.
 fn turn_away(state: &State, stream: &TcpStream) {
-    let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
     let response = error::ApiError::new(503, "busy", "too many connections are open")
         .with_header("Retry-After", limits::RETRY_AFTER_S.to_string())
         .into_response(false);
-    let _ = response.write_to(stream, false, false);
+    let _ = response.write_to(stream, false, false, Instant::now() + TURN_AWAY_WRITE);
     state.metrics.request("connection", 503);
     state.metrics.connection_closed();
 }

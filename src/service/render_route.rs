@@ -1,6 +1,6 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
-use super::admission::Charge;
+use super::admission::{Charge, Refused};
 use super::error::ApiError;
 use super::http::{Connection, Response};
 use super::{ServiceConfig, State};
@@ -9,6 +9,10 @@ use crate::output::Format;
 use crate::render::{render_scene, RenderError, RenderOptions};
 use crate::scene::{self, Scene};
 use std::time::{Duration, Instant};
+
+/// How often a render waiting in the queue checks that its client is still
+/// there; one that left gives its place back within this time.
+const QUEUE_POLL: Duration = Duration::from_millis(100);
 
 /// The figures of a render, sent as headers and exposed to scripts.
 const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height";
@@ -139,9 +143,22 @@ pub fn handle(
     let config = &state.config;
     let busy = |_| ApiError::busy(limits::RETRY_AFTER_S);
     let query = RenderQuery::parse(query)?;
-    // A place is taken before parsing, so the parsed scenes held at once
-    // are bounded by the queue as the bodies are by their budget.
     let place = state.admission.reserve().map_err(busy)?;
+    // A client that leaves while its request waits for a slot gives its
+    // place back then, and its scene is neither parsed nor rendered.
+    let deadline = Instant::now() + config.render_timeout;
+    let ticket = match place.enter(deadline, QUEUE_POLL, || conn.peer_closed()) {
+        Ok(ticket) => ticket,
+        Err(Refused::Abandoned) => {
+            state.metrics.render_abandoned();
+            return Ok(None);
+        }
+        Err(refused) => return Err(busy(refused)),
+    };
+    // Parsed once the slot is taken, so at most one parsed scene per slot
+    // is held (the waiting requests hold only their bodies, within their
+    // budget), and a waiting request is never stuck in a parse queued on
+    // the busy render pool, where its client's leaving would go unseen.
     // The parser is parallel: it runs on the render pool too, so the
     // service never starts rayon's global pool beside its own (which would
     // put twice as many busy threads as `--threads` on the cores).
@@ -151,13 +168,6 @@ pub fn handle(
         .map_err(|e| ApiError::scene(&e))?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
-
-    let ticket = place
-        .enter(Instant::now() + config.render_timeout)
-        .map_err(busy)?;
-    if conn.peer_closed() {
-        return Ok(None);
-    }
     let options = RenderOptions {
         spp: query.spp,
         depth: query.depth,
