@@ -251,16 +251,20 @@ fn bundle(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> (Vec3, Vec<Vec3>) {
         // On a lattice point.
         _ => rng.point(half).round(),
     };
-    let count = [16, 16, 32, 7, 1, 40][rng.below(6)];
+    // Whole packets of 64, partial ones, and more than one.
+    let count = [64, 64, 128, 16, 7, 1, 40, 100][rng.below(8)];
     let toward = (pick.center - origin).normalize_or(Vec3::NEG_Z);
     let side = toward.any_orthonormal_vector();
     let up = toward.cross(side);
     let spread = rng.log_range(1e-6, 0.5);
     let dirs = (0..count)
         .map(|i| match rng.below(8) {
-            // Through a tile around the picked sphere, like neighbouring pixels.
+            // Through an 8×8 tile around the picked sphere, like neighbouring
+            // pixels, quarter by quarter as the renderer lists them.
             0..=4 => {
-                let (x, y) = ((i % 4) as f32 - 1.5, (i / 4 % 4) as f32 - 1.5);
+                let quarter = i / 16 % 4;
+                let x = (quarter % 2 * 4 + i % 4) as f32 - 3.5;
+                let y = (quarter / 2 * 4 + i / 4 % 4) as f32 - 3.5;
                 toward + (side * x + up * y) * spread
             }
             // Axis-parallel with signed zeros, as far as the sign of travel goes.
@@ -326,7 +330,7 @@ proptest! {
     }
 }
 
-/// Eye rays in 4×4 pixel tiles, as the renderer traces them, at a resolution
+/// Eye rays in 8×8 pixel tiles, as the renderer traces them, at a resolution
 /// where a tile is a small fraction of a cell and where it spans several.
 #[test]
 fn eye_tiles_agree_on_every_kind_of_scene() {
@@ -343,15 +347,20 @@ fn eye_tiles_agree_on_every_kind_of_scene() {
         let grid = VoxelHashGrid::new(&shapes);
         for pixels in [64, 1024] {
             let step = 2.0 / pixels as f32;
-            for ty in (0..pixels).step_by(4 * pixels / 64) {
-                for tx in (0..pixels).step_by(4 * pixels / 64) {
-                    let dirs: Vec<Vec3> = (0..16)
-                        .map(|j| {
-                            let (x, y) = ((tx + j % 4) as f32, (ty + j / 4) as f32);
+            for ty in (0..pixels).step_by(8 * pixels / 64) {
+                for tx in (0..pixels).step_by(8 * pixels / 64) {
+                    let (tx, ty) = (tx as u32, ty as u32);
+                    let tile = voxtrace::render::tiles(tx + 8, ty..ty + 8)
+                        .last()
+                        .expect("a tile");
+                    let dirs: Vec<Vec3> = tile
+                        .iter()
+                        .map(|&(x, y)| {
+                            let (x, y) = (x as f32, y as f32);
                             Vec3::new(-1.0 + (x + 0.5) * step, -1.0 + (y + 0.5) * step, -1.0)
                         })
                         .collect();
-                    let mut got = vec![None; 16];
+                    let mut got = vec![None; dirs.len()];
                     grid.closest_hits(Vec3::ZERO, &dirs, 1.0, f32::INFINITY, &mut got);
                     for (d, hit) in dirs.iter().zip(&got) {
                         let want = brute.closest_hit(&Ray::new(Vec3::ZERO, *d), 1.0, f32::INFINITY);

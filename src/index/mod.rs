@@ -8,7 +8,7 @@ mod brute;
 pub mod grid;
 
 pub use brute::BruteForce;
-pub use grid::{EmptySpace, VoxelHashGrid, PACKET_LANES};
+pub use grid::{EmptySpace, VoxelHashGrid, PACKET_RAYS};
 
 use crate::geometry::{Ray, Real, V3};
 

@@ -288,33 +288,46 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
 }
 
 /// Side of the square tiles of pixels whose eye rays are traced together:
-/// 4×4 pixels give [`crate::index::PACKET_LANES`] rays per sample.
-pub const TILE: u32 = 4;
+/// 8×8 pixels give [`crate::index::PACKET_RAYS`] rays per sample.
+pub const TILE: u32 = 8;
+/// Side of the quarters of a tile, listed one after another: each quarter's
+/// rays are one group of a packet, with a cone of its own.
+pub const QUARTER: u32 = TILE / 2;
 /// Rows per band, the unit of parallel work, and side of the square blocks
 /// of tiles a band is traced in.
 pub const BAND: u32 = 32;
 
 /// The tiles of the band of rows `rows` (at most [`BAND`] of them) in the
-/// order they are traced, each as its pixels (column, row) row by row: tiles
-/// row by row within blocks of [`BAND`]×[`BAND`] pixels, blocks left to
-/// right. Consecutive packets then stay close on the image, so the cells and
+/// order they are traced, each as its pixels (column, row): tiles row by
+/// row within blocks of [`BAND`]×[`BAND`] pixels, blocks left to right, and
+/// a tile's pixels quarter by quarter ([`QUARTER`]×[`QUARTER`], top left,
+/// top right, bottom left, bottom right), row by row within a quarter.
+/// Consecutive packets then stay close on the image, so the cells and
 /// spheres one fetches are still in cache for the next, a tile row above or
-/// below included.
+/// below included; and each run of [`QUARTER`]² pixels is a compact square.
 pub fn tiles(width: u32, rows: std::ops::Range<u32>) -> impl Iterator<Item = Vec<(u32, u32)>> {
     (0..width).step_by(BAND as usize).flat_map(move |x0| {
         let rows = rows.clone();
         rows.clone().step_by(TILE as usize).flat_map(move |y0| {
-            let y1 = (y0 + TILE).min(rows.end);
+            let rows = rows.clone();
             (x0..(x0 + BAND).min(width))
                 .step_by(TILE as usize)
-                .map(move |t0| {
-                    let t1 = (t0 + TILE).min(width);
-                    (y0..y1)
-                        .flat_map(|y| (t0..t1).map(move |x| (x, y)))
-                        .collect()
-                })
+                .map(move |t0| tile_pixels(t0, y0, width, rows.end))
         })
     })
+}
+
+/// The pixels of the tile whose top-left corner (lowest column and row) is
+/// (x0, y0), quarter by quarter, clipped to `width` columns and rows below `end`.
+fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
+    let mut pixels = Vec::with_capacity((TILE * TILE) as usize);
+    for (qx, qy) in [(0, 0), (QUARTER, 0), (0, QUARTER), (QUARTER, QUARTER)] {
+        let (x, y) = (x0 + qx, y0 + qy);
+        for row in y..(y + QUARTER).min(end) {
+            pixels.extend((x..(x + QUARTER).min(width)).map(|column| (column, row)));
+        }
+    }
+    pixels
 }
 
 /// Renders the band of rows `rows` into `out`, tile by tile (see
@@ -380,15 +393,30 @@ mod tests {
             let mut seen = vec![0u32; (width * rows.len() as u32) as usize];
             for tile in tiles(width, rows.clone()) {
                 assert!(!tile.is_empty() && tile.len() <= (TILE * TILE) as usize);
-                // A tile is a rectangle of at most TILE × TILE pixels, row by row.
-                let (x0, y0) = tile[0];
+                // A tile lies in a TILE × TILE square, its quarters in turn.
+                let (x0, y0) = (tile[0].0 / TILE * TILE, tile[0].1);
+                let quarter = |(x, y): (u32, u32)| ((y - y0) / QUARTER) * 2 + (x - x0) / QUARTER;
                 for &(x, y) in &tile {
                     assert!(x >= x0 && x < x0 + TILE && y >= y0 && y < y0 + TILE);
                     seen[((y - rows.start) * width + x) as usize] += 1;
                 }
-                assert!(tile.windows(2).all(|p| (p[0].1, p[0].0) < (p[1].1, p[1].0)));
+                // Quarter by quarter, row by row within a quarter.
+                let order = |&p: &(u32, u32)| (quarter(p), p.1, p.0);
+                assert!(tile.windows(2).all(|p| order(&p[0]) < order(&p[1])));
             }
             assert!(seen.iter().all(|&n| n == 1), "{width} {rows:?}");
+        }
+    }
+
+    #[test]
+    fn a_full_tile_is_four_square_quarters() {
+        let tile = tiles(64, 0..32).next().unwrap();
+        assert_eq!(tile.len(), (TILE * TILE) as usize);
+        for (q, quarter) in tile.chunks((QUARTER * QUARTER) as usize).enumerate() {
+            let (qx, qy) = ((q as u32 % 2) * QUARTER, (q as u32 / 2) * QUARTER);
+            for (i, &(x, y)) in quarter.iter().enumerate() {
+                assert_eq!((x, y), (qx + i as u32 % QUARTER, qy + i as u32 / QUARTER));
+            }
         }
     }
 }

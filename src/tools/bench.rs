@@ -11,7 +11,7 @@
 
 use super::gen::{generate, Distribution, GenOptions, Rng};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Vec3Ops, V3};
-use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_LANES};
+use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_RAYS};
 use crate::render::{self, PixelSampler};
 use crate::scene::{self, Scene, SceneError};
 use rayon::prelude::*;
@@ -40,7 +40,7 @@ pub struct BenchResult {
     pub build_s: f64,
     pub index_bytes_per_sphere: f64,
     pub levels: usize,
-    /// Eye rays in packets of [`PACKET_LANES`] (4×4 pixel tiles), as the renderer traces them.
+    /// Eye rays in packets of [`PACKET_RAYS`] (8×8 pixel tiles), as the renderer traces them.
     pub primary_mrays_s: f64,
     /// Eye rays one at a time.
     pub primary_single_mrays_s: f64,
@@ -177,7 +177,7 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
 }
 
 /// One eye ray per pixel, in the renderer's tile order ([`render::tiles`]),
-/// so that each run of [`PACKET_LANES`] rays is a tile (when the sides are
+/// so that each run of [`PACKET_RAYS`] rays is a tile (when the sides are
 /// multiples of [`render::TILE`]).
 fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
     let sampler = PixelSampler::new(&scene.camera, 1);
@@ -195,11 +195,11 @@ fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
         .collect()
 }
 
-/// Eye rays in packets: each run of [`PACKET_LANES`] directions from the eye traced together.
+/// Eye rays in packets: each run of [`PACKET_RAYS`] directions from the eye traced together.
 fn primary_packets(index: &impl SphereIndex<f32>, dirs: &[V3<f32>]) -> Vec<Option<Hit<f32>>> {
     let mut hits = vec![None; dirs.len()];
-    dirs.par_chunks(PACKET_LANES)
-        .zip(hits.par_chunks_mut(PACKET_LANES))
+    dirs.par_chunks(PACKET_RAYS)
+        .zip(hits.par_chunks_mut(PACKET_RAYS))
         .with_min_len(16)
         .for_each(|(dirs, out)| {
             index.closest_hits(V3::<f32>::ZERO, dirs, 1.0, f32::INFINITY, out);

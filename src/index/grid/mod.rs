@@ -20,7 +20,7 @@ mod walk;
 use super::{Hit, SphereIndex};
 use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
-pub use packet::LANES as PACKET_LANES;
+pub use packet::RAYS as PACKET_RAYS;
 use rayon::prelude::*;
 use table::{BlockTable, RegionTable};
 use walk::Ray64;

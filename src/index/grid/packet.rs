@@ -7,10 +7,16 @@
 //! (the coherent grid traversal of Wald et al., "Ray Tracing Animated Scenes
 //! using Coherent Grid Traversal", 2006). In each slab (one cell thick) the
 //! rays' segments span a rectangle of cells; every candidate of the occupied
-//! cells there is tested against all the rays at once, in lanes the compiler
-//! turns into SIMD; and the packet moves on while any of its rays still wants
-//! cells that far. A layer of slabs one block thick whose rectangle meets only
-//! empty blocks is crossed with one probe per block.
+//! cells there is tested against the packet's rays, sixteen at a time in
+//! lanes the compiler turns into SIMD; and the packet moves on while any of
+//! its rays still wants cells that far. A layer of slabs one block thick
+//! whose rectangle meets only empty blocks is crossed with one probe per
+//! block, and a layer of regions (four block layers) with one probe per
+//! region.
+//!
+//! A candidate is first tested against a cone around the packet's 64 rays,
+//! then against a cone around each group of 16 (a 4×4 quarter of the tile),
+//! and only the groups whose cone it may meet run the lane test.
 //!
 //! # Why it returns what brute force returns
 //! - Every cell a ray crosses within a slab lies in the rectangle: a ray's
@@ -31,9 +37,16 @@ use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Hit, SphereIndex};
 use glam::DVec3;
 
-/// Rays per packet. Sixteen eye rays of a 4×4 tile of pixels span a few
-/// cells per slab; more lanes test more spheres a lane's ray never meets.
+/// Rays tested against a sphere at once: a 4×4 tile of pixels, in SIMD
+/// lanes. Wider, each test would spend more lanes on rays that miss.
 pub const LANES: usize = 16;
+/// Groups of [`LANES`] rays per packet.
+const GROUPS: usize = 4;
+/// Rays per packet: an 8×8 tile of pixels (its four 4×4 quarters are the
+/// groups). The walk's cost per packet grows far slower than its rays, so
+/// larger packets share it among more rays; each group keeps a cone of its
+/// own, so that a sphere is tested only against the groups that may hit it.
+pub const RAYS: usize = GROUPS * LANES;
 
 /// The rays of one packet, laid out for the lane-wise sphere test, and the
 /// best hit of each so far.
@@ -132,20 +145,20 @@ impl<R: Real> Lanes<R> {
 
 /// The packet's rays in f64 for the walk, and the axis it slabs along.
 struct Packet {
-    rays: [Ray64; LANES],
+    rays: [Ray64; RAYS],
     /// An axis every ray travels along in the same direction.
     axis: usize,
     step: i64,
     /// Per ray, how far it moves across the slabs per unit along `axis`: on
     /// the two other axes (`axis + 1`, `axis + 2`, mod 3), `d_u / d_axis`.
-    slope: [[f64; LANES]; 2],
+    slope: [[f64; RAYS]; 2],
 }
 
 impl Packet {
     /// None when the rays share no axis of travel (or one cannot be walked):
     /// those rays go one at a time.
-    fn new<R: Real>(origin: V3<R>, dirs: &[V3<R>; LANES]) -> Option<Packet> {
-        let mut rays = [Ray64::new(&Ray::<R>::new(origin, dirs[0]))?; LANES];
+    fn new<R: Real>(origin: V3<R>, dirs: &[V3<R>; RAYS]) -> Option<Packet> {
+        let mut rays = [Ray64::new(&Ray::<R>::new(origin, dirs[0]))?; RAYS];
         for (ray, &dir) in rays.iter_mut().zip(dirs).skip(1) {
             *ray = Ray64::new(&Ray::<R>::new(origin, dir))?;
         }
@@ -181,10 +194,10 @@ impl Packet {
     }
 
     /// The least and greatest slope of the rays in `live`, per cross axis.
-    fn slope_range(&self, live: u32) -> SlopeRange {
+    fn slope_range(&self, live: u64) -> SlopeRange {
         // Branch-free, so that the lanes vectorise: a retired ray counts as
         // +∞ for the least slope and −∞ for the greatest (slopes are finite).
-        let range = |slopes: &[f64; LANES]| {
+        let range = |slopes: &[f64; RAYS]| {
             let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
             for (i, &m) in slopes.iter().enumerate() {
                 let on = live >> i & 1 != 0;
@@ -208,9 +221,9 @@ struct SlopeRange {
     hi: [f64; 2],
 }
 
-/// A cone from the packet's origin that holds all its rays. A sphere whose
-/// bounding ball lies wholly outside it meets none of them, so its lane
-/// test (sixteen of them) is skipped for one scalar test.
+/// A cone from the packet's origin that holds a set of its rays (all of
+/// them, or one group). A sphere whose bounding ball lies wholly outside it
+/// meets none of them, so their lane tests are skipped for one scalar test.
 ///
 /// # Why skipping is exact
 /// Let V be the apex, a the unit axis and α the half-angle (every ray
@@ -249,18 +262,16 @@ const MIN_CONE_COS: f64 = 0.5;
 impl Cone {
     /// None when the rays may reach behind the apex or spread too wide for a
     /// cone to pay.
-    fn new(packet: &Packet, t_min: f64) -> Option<Cone> {
+    fn new(rays: &[Ray64], t_min: f64) -> Option<Cone> {
         if t_min.is_nan() || t_min < 0.0 {
             return None;
         }
-        let dirs = packet
-            .rays
-            .each_ref()
-            .map(|r| DVec3::from_array(r.d) / r.length);
-        let axis = dirs.iter().sum::<DVec3>().try_normalize()?;
-        let cos = dirs.iter().map(|d| axis.dot(*d)).fold(1.0, f64::min) - CONE_MARGIN;
+        let apex = DVec3::from_array(rays.first()?.o);
+        let dir = |r: &Ray64| DVec3::from_array(r.d) / r.length;
+        let axis = rays.iter().map(dir).sum::<DVec3>().try_normalize()?;
+        let cos = rays.iter().map(|r| axis.dot(dir(r))).fold(1.0, f64::min) - CONE_MARGIN;
         (cos >= MIN_CONE_COS).then(|| Cone {
-            apex: DVec3::from_array(packet.rays[0].o),
+            apex,
             axis,
             inv_sin: 1.0 / (1.0 - cos * cos).sqrt(),
             cos2: cos * cos * (1.0 - CONE_MARGIN),
@@ -278,12 +289,15 @@ impl Cone {
 
 /// The last spheres tested, direct-mapped: a packet meets each candidate in
 /// several cells of a slab and of the slabs after it.
-struct PacketMailbox([u32; 64]);
+struct PacketMailbox([u32; MAILBOX]);
+
+/// Slots of a packet's mailbox: a few times the spheres a packet meets.
+const MAILBOX: usize = 256;
 
 impl PacketMailbox {
     #[inline(always)]
     fn first_visit(&mut self, id: u32) -> bool {
-        let slot = &mut self.0[id as usize & 63];
+        let slot = &mut self.0[id as usize % MAILBOX];
         let first = *slot != id;
         *slot = id;
         first
@@ -324,8 +338,8 @@ const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
 /// `travel ≤ reach_i·|d_k|`; the limit is widened by [`RETIRE_MARGIN`], as
 /// retiring a ray late only costs work and retiring it early would lose hits.
 struct Search {
-    live: u32,
-    limit: [f64; LANES],
+    live: u64,
+    limit: [f64; RAYS],
     nearest: f64,
 }
 
@@ -333,14 +347,14 @@ impl Search {
     fn update<R: Real>(
         &mut self,
         packet: &Packet,
-        lanes: &Lanes<R>,
+        groups: &Groups<R>,
         reach: impl Fn(usize, R) -> f64,
     ) {
         let k = packet.axis;
         self.nearest = f64::INFINITY;
         for (i, ray) in packet.rays.iter().enumerate() {
             if self.live >> i & 1 != 0 {
-                let limit = reach(i, lanes.best_t[i]) * ray.d[k].abs();
+                let limit = reach(i, best_t(groups, i)) * ray.d[k].abs();
                 let limit = limit + limit.abs() * RETIRE_MARGIN;
                 self.limit[i] = limit;
                 self.nearest = self.nearest.min(limit);
@@ -428,21 +442,21 @@ impl Level {
     fn walk_packet<R: Real>(
         &self,
         packet: &Packet,
-        lanes: &mut Lanes<R>,
+        groups: &mut Groups<R>,
         t_max: R,
         empty_space: EmptySpace,
-        mut visit: impl FnMut(&[u32], &mut Lanes<R>),
+        mut visit: impl FnMut(&[u32], &mut Groups<R>, u64),
     ) {
         let (k, step) = (packet.axis, packet.step);
-        let slack: [f64; LANES] = packet.rays.each_ref().map(|r| self.slack / r.length);
-        let t_lo = lanes.t_min.to_f64();
+        let slack: [f64; RAYS] = packet.rays.each_ref().map(|r| self.slack / r.length);
+        let t_lo = groups[0].t_min.to_f64();
         // Each ray's exit from the level's box (widened by the slack), and
         // the first and last slab any ray is in, counted along the travel.
-        let mut exit = [f64::NEG_INFINITY; LANES];
-        let mut live = 0u32;
+        let mut exit = [f64::NEG_INFINITY; RAYS];
+        let mut live = 0u64;
         let (mut first, mut last) = (i64::MAX, i64::MIN);
         for (i, ray) in packet.rays.iter().enumerate() {
-            let reach = lanes.best_t[i].min(t_max).to_f64() + slack[i];
+            let reach = best_t(groups, i).min(t_max).to_f64() + slack[i];
             let Some((a, b)) = self.clip(ray, t_lo - slack[i], reach) else {
                 continue;
             };
@@ -462,11 +476,11 @@ impl Level {
         let reach = |i: usize, best: R| (best.min(t_max).to_f64() + slack[i]).min(exit[i]);
         let mut search = Search {
             live,
-            limit: [f64::INFINITY; LANES],
+            limit: [f64::INFINITY; RAYS],
             nearest: f64::INFINITY,
         };
-        search.update(packet, lanes, reach);
-        lanes.improved = false;
+        search.update(packet, groups, reach);
+        take_improved(groups);
         // Slab s lies between planes s and s + 1; a ray entering it going
         // down the axis crosses plane s + 1 first.
         let entry_plane = |s: i64| if step > 0 { s } else { s + 1 };
@@ -515,20 +529,14 @@ impl Level {
                 let layer_end = run_end(s, BLOCK_SHIFT);
                 while s * step <= layer_end * step {
                     let leaving = cells.at(&range, delta(entry_plane(s + step)));
-                    self.visit_slab(
-                        k,
-                        s,
-                        Rect::between(&entry, &leaving),
-                        &blocks,
-                        lanes,
-                        &mut visit,
-                    );
+                    self.visit_slab(k, s, Rect::between(&entry, &leaving), &blocks, &mut |ids| {
+                        visit(ids, groups, search.live)
+                    });
                     s += step;
                     entry = leaving;
                     // The tests may have found nearer hits.
-                    if lanes.improved {
-                        lanes.improved = false;
-                        search.update(packet, lanes, reach);
+                    if take_improved(groups) {
+                        search.update(packet, groups, reach);
                     }
                     if search.retire(travel(s)) {
                         if search.live == 0 {
@@ -632,14 +640,13 @@ impl Level {
     }
 
     /// Visits the occupied cells of slab `s` within `rect`.
-    fn visit_slab<R: Real>(
+    fn visit_slab(
         &self,
         k: usize,
         s: i64,
         rect: Rect,
         blocks: &LayerBlocks,
-        lanes: &mut Lanes<R>,
-        visit: &mut impl FnMut(&[u32], &mut Lanes<R>),
+        visit: &mut impl FnMut(&[u32]),
     ) {
         let (u, v) = ((k + 1) % 3, (k + 2) % 3);
         for cu in rect.lo[0]..=rect.hi[0] {
@@ -657,7 +664,7 @@ impl Level {
                     _ => self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT))),
                 };
                 if let Some(b) = block.filter(|b| b.holds(cell_bit(c))) {
-                    visit(self.candidates(b.cell_index(cell_bit(c))), lanes);
+                    visit(self.candidates(b.cell_index(cell_bit(c))));
                 }
             }
         }
@@ -687,8 +694,25 @@ struct LayerBlocks {
     blocks: [Option<Block>; LAYER_BLOCKS],
 }
 
+/// The rays of a packet, group by group.
+type Groups<R> = [Lanes<R>; GROUPS];
+
+/// Ray i's best t so far (ray i is lane i mod [`LANES`] of group i / [`LANES`]).
+#[inline(always)]
+fn best_t<R: Real>(groups: &Groups<R>, i: usize) -> R {
+    groups[i / LANES].best_t[i % LANES]
+}
+
+/// Whether any group's best hits moved nearer since the last call.
+#[inline(always)]
+fn take_improved<R: Real>(groups: &mut Groups<R>) -> bool {
+    groups
+        .iter_mut()
+        .fold(false, |any, g| std::mem::take(&mut g.improved) | any)
+}
+
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`SphereIndex::closest_hits`]: packets of [`LANES`] rays, and rays
+    /// [`SphereIndex::closest_hits`]: packets of [`RAYS`] rays, and rays
     /// one at a time where a packet cannot be formed.
     pub(super) fn packet_closest_hits(
         &self,
@@ -698,14 +722,14 @@ impl<R: Real> VoxelHashGrid<R> {
         t_max: R,
         out: &mut [Option<Hit<R>>],
     ) {
-        for (dirs, out) in dirs.chunks(LANES).zip(out.chunks_mut(LANES)) {
+        for (dirs, out) in dirs.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // A short last packet repeats its last ray in the spare lanes.
-            let padded: [V3<R>; LANES] = std::array::from_fn(|i| dirs[i.min(dirs.len() - 1)]);
+            let padded: [V3<R>; RAYS] = std::array::from_fn(|i| dirs[i.min(dirs.len() - 1)]);
             match Packet::new::<R>(origin, &padded) {
                 Some(packet) => {
-                    let lanes = self.trace_packet(&packet, origin, &padded, t_min, t_max);
+                    let groups = self.trace_packet(&packet, origin, &padded, t_min, t_max);
                     for (i, hit) in out.iter_mut().enumerate() {
-                        *hit = lanes.hit(i);
+                        *hit = groups[i / LANES].hit(i % LANES);
                     }
                 }
                 None => {
@@ -721,30 +745,51 @@ impl<R: Real> VoxelHashGrid<R> {
         &self,
         packet: &Packet,
         origin: V3<R>,
-        dirs: &[V3<R>; LANES],
+        dirs: &[V3<R>; RAYS],
         t_min: R,
         t_max: R,
-    ) -> Lanes<R> {
-        let mut lanes = Lanes::new(origin, dirs, t_min, t_max);
-        let mut mailbox = PacketMailbox([u32::MAX; 64]);
-        let cone = Cone::new(packet, t_min.to_f64());
+    ) -> Groups<R> {
+        let mut groups: Groups<R> = std::array::from_fn(|g| {
+            let dirs = std::array::from_fn(|i| dirs[g * LANES + i]);
+            Lanes::new(origin, &dirs, t_min, t_max)
+        });
+        let mut mailbox = PacketMailbox([u32::MAX; MAILBOX]);
+        // A cone around the whole packet, then one around each group.
+        let t_min = t_min.to_f64();
+        let cone = Cone::new(&packet.rays, t_min);
+        let group_cones: [Option<Cone>; GROUPS] =
+            std::array::from_fn(|g| Cone::new(&packet.rays[g * LANES..(g + 1) * LANES], t_min));
         for level in &self.levels {
-            level.walk_packet(packet, &mut lanes, t_max, self.empty_space, |ids, lanes| {
-                for &i in ids {
-                    if !mailbox.first_visit(i) {
-                        continue;
+            level.walk_packet(
+                packet,
+                &mut groups,
+                t_max,
+                self.empty_space,
+                |ids, groups, live| {
+                    for &i in ids {
+                        if !mailbox.first_visit(i) {
+                            continue;
+                        }
+                        let sphere = &self.spheres[i as usize];
+                        let center = sphere.frame.center.to_dvec3();
+                        let bound = sphere.bound.to_f64();
+                        if cone.as_ref().is_some_and(|c| !c.may_hit(center, bound)) {
+                            continue;
+                        }
+                        for (g, lanes) in groups.iter_mut().enumerate() {
+                            let searching = live >> (g * LANES) & ((1 << LANES) - 1) != 0;
+                            if searching
+                                && group_cones[g]
+                                    .as_ref()
+                                    .is_none_or(|c| c.may_hit(center, bound))
+                            {
+                                lanes.test(&sphere.frame, sphere.id);
+                            }
+                        }
                     }
-                    let sphere = &self.spheres[i as usize];
-                    let center = sphere.frame.center.to_dvec3();
-                    if cone
-                        .as_ref()
-                        .is_none_or(|c| c.may_hit(center, sphere.bound.to_f64()))
-                    {
-                        lanes.test(&sphere.frame, sphere.id);
-                    }
-                }
-            });
+                },
+            );
         }
-        lanes
+        groups
     }
 }
