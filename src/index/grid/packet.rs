@@ -60,8 +60,8 @@ struct Lanes<R: Real> {
     /// t with a lower id still wins, as in brute force): `best_t.next_up()`.
     cap: [R; LANES],
     t_min: R,
-    /// Set when a lane's best hit moved nearer.
-    improved: bool,
+    /// The lanes whose best hit moved nearer, one bit each.
+    improved: u32,
 }
 
 impl<R: Real> Lanes<R> {
@@ -77,7 +77,7 @@ impl<R: Real> Lanes<R> {
             best_id: [u32::MAX; LANES],
             cap: [t_max; LANES],
             t_min,
-            improved: false,
+            improved: 0,
         }
     }
 
@@ -130,7 +130,7 @@ impl<R: Real> Lanes<R> {
                 self.best_t[i] = t;
                 self.best_id[i] = id;
                 self.cap[i] = t.next_up();
-                self.improved = true;
+                self.improved |= 1 << i;
             }
         }
     }
@@ -344,21 +344,25 @@ struct Search {
 }
 
 impl Search {
+    /// Brings the limits of the live rays among `rays` (a mask) up to date
+    /// with their best hits. A limit only shrinks (the best t only moves
+    /// nearer), so the nearest limit is kept by taking the least.
     fn update<R: Real>(
         &mut self,
         packet: &Packet,
         groups: &Groups<R>,
         reach: impl Fn(usize, R) -> f64,
+        rays: u64,
     ) {
         let k = packet.axis;
-        self.nearest = f64::INFINITY;
-        for (i, ray) in packet.rays.iter().enumerate() {
-            if self.live >> i & 1 != 0 {
-                let limit = reach(i, best_t(groups, i)) * ray.d[k].abs();
-                let limit = limit + limit.abs() * RETIRE_MARGIN;
-                self.limit[i] = limit;
-                self.nearest = self.nearest.min(limit);
-            }
+        let mut todo = rays & self.live;
+        while todo != 0 {
+            let i = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let limit = reach(i, best_t(groups, i)) * packet.rays[i].d[k].abs();
+            let limit = limit + limit.abs() * RETIRE_MARGIN;
+            self.limit[i] = limit;
+            self.nearest = self.nearest.min(limit);
         }
     }
 
@@ -479,7 +483,7 @@ impl Level {
             limit: [f64::INFINITY; RAYS],
             nearest: f64::INFINITY,
         };
-        search.update(packet, groups, reach);
+        search.update(packet, groups, reach, live);
         take_improved(groups);
         // Slab s lies between planes s and s + 1; a ray entering it going
         // down the axis crosses plane s + 1 first.
@@ -535,8 +539,9 @@ impl Level {
                     s += step;
                     entry = leaving;
                     // The tests may have found nearer hits.
-                    if take_improved(groups) {
-                        search.update(packet, groups, reach);
+                    let improved = take_improved(groups);
+                    if improved != 0 {
+                        search.update(packet, groups, reach, improved);
                     }
                     if search.retire(travel(s)) {
                         if search.live == 0 {
@@ -703,12 +708,12 @@ fn best_t<R: Real>(groups: &Groups<R>, i: usize) -> R {
     groups[i / LANES].best_t[i % LANES]
 }
 
-/// Whether any group's best hits moved nearer since the last call.
+/// The rays whose best hit moved nearer since the last call, as a mask.
 #[inline(always)]
-fn take_improved<R: Real>(groups: &mut Groups<R>) -> bool {
-    groups
-        .iter_mut()
-        .fold(false, |any, g| std::mem::take(&mut g.improved) | any)
+fn take_improved<R: Real>(groups: &mut Groups<R>) -> u64 {
+    groups.iter_mut().enumerate().fold(0, |mask, (g, lanes)| {
+        mask | u64::from(std::mem::take(&mut lanes.improved)) << (g * LANES)
+    })
 }
 
 impl<R: Real> VoxelHashGrid<R> {
