@@ -201,7 +201,8 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
         .into_iter()
         .rev()
         .map(|(cell, mut ids)| {
-            ids.sort_unstable();
+            // Bands that share a level arrive one after another, each in id order.
+            ids.par_sort_unstable();
             build_level(&extents, &ids, f64::from_bits(cell), &mut rank, &mut order)
         })
         .collect();
