@@ -511,6 +511,8 @@ impl Level {
         let mut s = first;
         while s * step <= last * step {
             let mut entry = cells.at(&range, delta(entry_plane(s)));
+            // The rest of the layer of slabs one block thick that s is in.
+            let layer_end = run_end(s, BLOCK_SHIFT);
             let empty_until = if s * step > region_end * step {
                 // Entering a layer of regions: crossed at once when its
                 // rectangle meets no occupied block.
@@ -522,15 +524,12 @@ impl Level {
                 None
             };
             let empty_until = empty_until.or_else(|| {
-                // The rest of the layer of slabs one block thick that s is in.
-                let layer_end = run_end(s, BLOCK_SHIFT);
                 let layer_exit = cells.at(&range, delta(entry_plane(layer_end + step)));
                 let rect = Rect::between(&entry, &layer_exit);
                 self.layer_blocks(k, s, rect, empty_space, &mut blocks);
                 (blocks.state == LayerState::Empty).then_some(layer_end)
             });
             let Some(empty_until) = empty_until else {
-                let layer_end = run_end(s, BLOCK_SHIFT);
                 while s * step <= layer_end * step {
                     let leaving = cells.at(&range, delta(entry_plane(s + step)));
                     self.visit_slab(k, s, Rect::between(&entry, &leaving), &blocks, &mut |ids| {
