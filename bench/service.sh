@@ -70,6 +70,32 @@ cpu_of() { awk '{print $1 + $2}' "$1"; }
 # server_cpu: the server's user + system seconds so far.
 server_cpu() { awk -v t="$(getconf CLK_TCK)" '{print ($14 + $15) / t}' "/proc/$SERVER/stat"; }
 
+# run_in_process SCENE C ARGS…: one `voxtrace load --in-process` run (ARGS: -d or -n)
+# into $WORK/run.json; sets `cpu` to its CPU seconds.
+run_in_process() {
+    local scene=$1 c=$2
+    shift 2
+    /usr/bin/time -f "%U %S" -o "$WORK/time" \
+        "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c "$c" "$@" --json > "$WORK/run.json"
+    cpu=$(cpu_of "$WORK/time")
+}
+# run_service SCENE C ARGS…: the same run against the server; sets `cpu` to the CPU
+# seconds of the server and the load client together.
+run_service() {
+    local scene=$1 c=$2 before
+    shift 2
+    before=$(server_cpu)
+    /usr/bin/time -f "%U %S" -o "$WORK/time" \
+        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$c" "$@" --timeout 300s --json > "$WORK/run.json"
+    # Let the renders still in flight finish before reading the server's CPU.
+    while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
+    cpu=$(echo "$(server_cpu) - $before + $(cpu_of "$WORK/time")" | bc -l)
+}
+# record_not_200 WHAT: notes in $WORK/not_200 a run whose answers were not all 200.
+record_not_200() {
+    field '"" if d["status"].get("200") == d["requests"] and not d["errors"] else "%s: status %s, errors %s" % ("'"$1"'", d["status"], d["errors"])' < "$WORK/run.json" >> "$WORK/not_200"
+}
+
 throughput() {
     echo "### Throughput: service vs in-process, interleaved"
     echo
@@ -97,24 +123,18 @@ throughput() {
                 [ $((rep % 2)) = 0 ] && order="svc in"
                 for mode in $order; do
                     if [ "$mode" = in ]; then
-                        /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                            "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --json > "$WORK/run.json"
+                        run_in_process "$scene" "$c" -d "$dur"
                         in=$(field 'd["renders_per_s"]' < "$WORK/run.json")
                         echo "$in" >> "$WORK/in"
                         n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
-                        echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l >> "$WORK/in_cpu"
+                        echo "$cpu * 1000 / $n" | bc -l >> "$WORK/in_cpu"
                     else
-                        before=$(server_cpu)
-                        /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                            "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$c" -d "$dur" --timeout 300s --json > "$WORK/run.json"
-                        # Let the renders still in flight finish before reading the server's CPU.
-                        while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
-                        after=$(server_cpu)
+                        run_service "$scene" "$c" -d "$dur"
                         svc=$(field 'd["renders_per_s"]' < "$WORK/run.json")
-                        field '"" if d["status"].get("200") == d["requests"] and not d["errors"] else "%s c=%s: status %s, errors %s" % ("'"$label"'", d["concurrency"], d["status"], d["errors"])' < "$WORK/run.json" >> "$WORK/not_200"
+                        record_not_200 "$label c=$c"
                         echo "$svc" >> "$WORK/svc"
                         n=$(field 'd["renders"] + d["unfinished"]' < "$WORK/run.json")
-                        echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
+                        echo "$cpu * 1000 / $n" | bc -l >> "$WORK/svc_cpu"
                     fi
                 done
                 echo "$svc / $in" | bc -l >> "$WORK/pair"
@@ -171,19 +191,14 @@ saturation() {
             load_before=$(load1)
             for mode in $order; do
                 if [ "$mode" = in ]; then
-                    /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                        "$BIN" load --in-process --url "http://x/render" --scene "$WORK/$scene" -c "$SAT_C" -n "$n" --json > "$WORK/run.json"
+                    run_in_process "$scene" "$SAT_C" -n "$n"
                     in=$(field 'd["renders"] / d["elapsed_s"]' < "$WORK/run.json")
-                    in_cpu=$(echo "$(cpu_of "$WORK/time") * 1000 / $n" | bc -l)
+                    in_cpu=$(echo "$cpu * 1000 / $n" | bc -l)
                 else
-                    before=$(server_cpu)
-                    /usr/bin/time -f "%U %S" -o "$WORK/time" \
-                        "$BIN" load --url "http://$ADDR/render" --scene "$WORK/$scene" -c "$SAT_C" -n "$n" --timeout 300s --json > "$WORK/run.json"
-                    while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
-                    after=$(server_cpu)
+                    run_service "$scene" "$SAT_C" -n "$n"
                     svc=$(field 'd["renders"] / d["elapsed_s"]' < "$WORK/run.json")
-                    svc_cpu=$(echo "($after - $before + $(cpu_of "$WORK/time")) * 1000 / $n" | bc -l)
-                    field '"" if d["status"].get("200") == d["requests"] and not d["errors"] else "%s: status %s, errors %s" % ("'"$label"'", d["status"], d["errors"])' < "$WORK/run.json" >> "$WORK/not_200"
+                    svc_cpu=$(echo "$cpu * 1000 / $n" | bc -l)
+                    record_not_200 "$label"
                 fi
             done
             echo "${order%% *} $in $svc $in_cpu $svc_cpu $load_before $(load1)" >> "$WORK/pairs"
