@@ -65,20 +65,29 @@ struct Lanes<R: Real> {
 }
 
 impl<R: Real> Lanes<R> {
-    fn new(origin: V3<R>, dirs: &[V3<R>; LANES], t_min: R, t_max: R) -> Self {
+    fn new(origin: V3<R>, t_min: R) -> Self {
         Lanes {
             origin,
-            dir: [
-                dirs.map(|d| d.x()),
-                dirs.map(|d| d.y()),
-                dirs.map(|d| d.z()),
-            ],
+            dir: [[R::zero(); LANES]; 3],
             best_t: [R::infinity(); LANES],
             best_id: [u32::MAX; LANES],
-            cap: [t_max; LANES],
+            cap: [R::infinity(); LANES],
             t_min,
             improved: 0,
         }
+    }
+
+    /// Sets the lanes' directions and forgets their hits.
+    fn aim(&mut self, dirs: &[V3<R>], t_max: R) {
+        for (i, d) in dirs.iter().enumerate().take(LANES) {
+            self.dir[0][i] = d.x();
+            self.dir[1][i] = d.y();
+            self.dir[2][i] = d.z();
+        }
+        self.best_t = [R::infinity(); LANES];
+        self.best_id = [u32::MAX; LANES];
+        self.cap = [t_max; LANES];
+        self.improved = 0;
     }
 
     /// [`UnitSphereFrame::intersect`] for every lane at once, keeping each lane's
@@ -146,6 +155,8 @@ impl<R: Real> Lanes<R> {
 /// The packet's rays in f64 for the walk, and the axis it slabs along.
 struct Packet {
     rays: [Ray64; RAYS],
+    /// The rays' unit directions, for the choice of axis and the cones.
+    unit: [DVec3; RAYS],
     /// An axis every ray travels along in the same direction.
     axis: usize,
     step: i64,
@@ -155,34 +166,37 @@ struct Packet {
 }
 
 impl Packet {
-    /// None when the rays share no axis of travel (or one cannot be walked):
-    /// those rays go one at a time.
+    /// The packet of rays from `origin` along `dirs`; None when the rays
+    /// share no axis of travel (or one cannot be walked): those rays go one
+    /// at a time.
     fn new<R: Real>(origin: V3<R>, dirs: &[V3<R>; RAYS]) -> Option<Packet> {
-        let mut rays = [Ray64::new(&Ray::<R>::new(origin, dirs[0]))?; RAYS];
-        for (ray, &dir) in rays.iter_mut().zip(dirs).skip(1) {
-            *ray = Ray64::new(&Ray::<R>::new(origin, dir))?;
+        let mut walkable = true;
+        let rays = std::array::from_fn(|i| {
+            let ray = Ray64::new(&Ray::<R>::new(origin, dirs[i]));
+            walkable &= ray.is_some();
+            ray.unwrap_or_default()
+        });
+        if !walkable {
+            return None;
         }
+        let unit: [DVec3; RAYS] = rays.each_ref().map(|r| DVec3::from_array(r.d) / r.length);
         // How steeply the shallowest ray travels along each axis (0 when
         // some ray runs parallel to it or the other way).
-        let steepness = [0, 1, 2].map(|axis| {
-            let positive = rays[0].d[axis] > 0.0;
-            rays.iter()
-                .map(|r| {
-                    let d = r.d[axis];
-                    if d != 0.0 && (d > 0.0) == positive {
-                        d.abs() / r.length
-                    } else {
-                        0.0
-                    }
-                })
-                .fold(f64::INFINITY, f64::min)
-        });
+        let first = unit[0];
+        let mut steepness = [f64::INFINITY; 3];
+        for u in &unit {
+            for (axis, least) in steepness.iter_mut().enumerate() {
+                let same_way = u[axis] != 0.0 && (u[axis] > 0.0) == (first[axis] > 0.0);
+                *least = least.min(if same_way { u[axis].abs() } else { 0.0 });
+            }
+        }
         // The steepest axis gives the thinnest slab rectangles.
         let axis = (0..3).max_by(|&a, &b| steepness[a].total_cmp(&steepness[b]))?;
         let slope = [1, 2].map(|j| rays.each_ref().map(|r| r.d[(axis + j) % 3] / r.d[axis]));
         (steepness[axis] > 0.0).then(|| Packet {
-            step: if rays[0].d[axis] > 0.0 { 1 } else { -1 },
+            step: if first[axis] > 0.0 { 1 } else { -1 },
             rays,
+            unit,
             axis,
             slope,
         })
@@ -195,23 +209,21 @@ impl Packet {
 
     /// The least and greatest slope of the rays in `live`, per cross axis.
     fn slope_range(&self, live: u64) -> SlopeRange {
-        // Branch-free, so that the lanes vectorise: a retired ray counts as
-        // +∞ for the least slope and −∞ for the greatest (slopes are finite).
-        let range = |slopes: &[f64; RAYS]| {
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for (i, &m) in slopes.iter().enumerate() {
-                let on = live >> i & 1 != 0;
-                let (a, b) = if on { (m, m) } else { (lo, hi) };
-                lo = if a < lo { a } else { lo };
-                hi = if b > hi { b } else { hi };
-            }
-            (lo, hi)
+        let mut range = SlopeRange {
+            lo: [f64::INFINITY; 2],
+            hi: [f64::NEG_INFINITY; 2],
         };
-        let [(lo0, hi0), (lo1, hi1)] = [range(&self.slope[0]), range(&self.slope[1])];
-        SlopeRange {
-            lo: [lo0, lo1],
-            hi: [hi0, hi1],
+        let mut todo = live;
+        while todo != 0 {
+            let i = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            for j in 0..2 {
+                let m = self.slope[j][i];
+                range.lo[j] = range.lo[j].min(m);
+                range.hi[j] = range.hi[j].max(m);
+            }
         }
+        range
     }
 }
 
@@ -233,20 +245,27 @@ struct SlopeRange {
 /// can give a ray a hit only if its ball B(C, ρ) meets K.
 ///
 /// Every point within ρ of K lies in the same cone moved back along its
-/// axis, K' with apex U = V − (ρ / sin α)·a: the ball B(V, ρ) lies in K'
-/// (V is on K''s axis at distance ρ / sin α from its apex, which puts it ρ
-/// from K''s surface), and K' + x ⊆ K' for every direction x of K, so
+/// axis, K' with apex U = V − m·a, m = ρ / sin α: the ball B(V, ρ) lies in
+/// K' (V is on K''s axis at distance m from its apex, which puts it ρ from
+/// K''s surface), and K' + x ⊆ K' for every direction x of K, so
 /// B(V + x, ρ) ⊆ K' for every point V + x of K. With e = C − U and
 /// s = a·e, C lies in K' exactly when s ≥ |e|·cos α, that is when s ≥ 0
 /// and s² ≥ cos²α·|e|²: no square root. A candidate that fails it is
 /// skipped.
 ///
-/// Only packets with `t_min ≥ 0` and α ≤ 60° get a cone. There s ≥ |e|/2
-/// for a ball that meets K, and e's terms are at most about 20·|e|, so the
-/// f64 rounding of s, |e|² and the apex is a few units of 1e-15 relative:
-/// [`CONE_MARGIN`] widens the angle and the final comparison far beyond it.
+/// All the packet's cones share the apex (the rays' origin), so the test
+/// is written in w = C − V, computed once per candidate: s = a·w + m and
+/// |e|² = |w|² + m·(2·a·w + m).
+///
+/// Only packets with `t_min ≥ 0` and α ≤ 60° get a cone. Rounding: for a
+/// ball that meets K, C lies at least m − ρ ≥ 0.13·m from U (U is m from K,
+/// and ρ = m·sin α ≤ 0.87·m), so |w| ≤ |e| + m ≤ 8.5·|e| and every term of
+/// |e|² is at most about 130·|e|²; and s ≥ |e|/2 while its terms are at
+/// most 16·|e|. The f64 rounding of the test is thus a few units of 1e-14
+/// relative: [`CONE_MARGIN`] widens the angle and the final comparison far
+/// beyond it.
+#[derive(Clone, Copy)]
 struct Cone {
-    apex: DVec3,
     axis: DVec3,
     /// 1 / sin α: how far back the apex moves per unit of bound.
     inv_sin: f64,
@@ -260,30 +279,72 @@ const CONE_MARGIN: f64 = 1e-9;
 const MIN_CONE_COS: f64 = 0.5;
 
 impl Cone {
-    /// None when the rays may reach behind the apex or spread too wide for a
-    /// cone to pay.
-    fn new(rays: &[Ray64], t_min: f64) -> Option<Cone> {
+    /// The cone around the unit directions `units`; None when the rays may
+    /// reach behind the apex or spread too wide for a cone to pay.
+    fn new(units: &[DVec3], t_min: f64) -> Option<Cone> {
         if t_min.is_nan() || t_min < 0.0 {
             return None;
         }
-        let apex = DVec3::from_array(rays.first()?.o);
-        let dir = |r: &Ray64| DVec3::from_array(r.d) / r.length;
-        let axis = rays.iter().map(dir).sum::<DVec3>().try_normalize()?;
-        let cos = rays.iter().map(|r| axis.dot(dir(r))).fold(1.0, f64::min) - CONE_MARGIN;
+        let axis = units.iter().sum::<DVec3>().try_normalize()?;
+        let cos = units.iter().map(|u| axis.dot(*u)).fold(1.0, f64::min) - CONE_MARGIN;
         (cos >= MIN_CONE_COS).then(|| Cone {
-            apex,
             axis,
             inv_sin: 1.0 / (1.0 - cos * cos).sqrt(),
             cos2: cos * cos * (1.0 - CONE_MARGIN),
         })
     }
 
-    /// False only when no ray of the cone comes within `bound` of `center`.
+    /// False only when no ray of the cone comes within `bound` of the
+    /// candidate at `offset` from the apex.
     #[inline(always)]
-    fn may_hit(&self, center: DVec3, bound: f64) -> bool {
-        let e = center - self.apex + self.axis * (bound * self.inv_sin);
-        let s = self.axis.dot(e);
-        s >= 0.0 && s * s >= self.cos2 * e.length_squared()
+    fn may_hit(&self, offset: &Offset, bound: f64) -> bool {
+        let m = bound * self.inv_sin;
+        let p = self.axis.dot(offset.w);
+        let s = p + m;
+        s >= 0.0 && s * s >= self.cos2 * (offset.w2 + m * (2.0 * p + m))
+    }
+}
+
+/// A candidate's centre relative to the packet's origin, for its cone tests.
+struct Offset {
+    w: DVec3,
+    /// |w|²
+    w2: f64,
+}
+
+/// The cones of a packet: one around all its rays, one around each group.
+struct Cones {
+    packet: Option<Cone>,
+    groups: [Option<Cone>; GROUPS],
+}
+
+impl Cones {
+    fn new(packet: &Packet, t_min: f64) -> Cones {
+        Cones {
+            packet: Cone::new(&packet.unit, t_min),
+            groups: std::array::from_fn(|g| {
+                Cone::new(&packet.unit[g * LANES..(g + 1) * LANES], t_min)
+            }),
+        }
+    }
+
+    /// The groups among `groups` (a mask, one bit per group) whose rays may
+    /// hit a candidate within `bound` of `center`.
+    #[inline(always)]
+    fn groups_hit(&self, origin: DVec3, center: DVec3, bound: f64, groups: u32) -> u32 {
+        let w = center - origin;
+        let offset = Offset {
+            w,
+            w2: w.length_squared(),
+        };
+        if self.packet.is_some_and(|c| !c.may_hit(&offset, bound)) {
+            return 0;
+        }
+        let mut hit = 0;
+        for (g, cone) in self.groups.iter().enumerate() {
+            hit |= u32::from(cone.is_none_or(|c| c.may_hit(&offset, bound))) << g;
+        }
+        hit & groups
     }
 }
 
@@ -726,74 +787,57 @@ impl<R: Real> VoxelHashGrid<R> {
         t_max: R,
         out: &mut [Option<Hit<R>>],
     ) {
+        let mut groups: Groups<R> = std::array::from_fn(|_| Lanes::new(origin, t_min));
         for (dirs, out) in dirs.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // A short last packet repeats its last ray in the spare lanes.
             let padded: [V3<R>; RAYS] = std::array::from_fn(|i| dirs[i.min(dirs.len() - 1)]);
-            match Packet::new::<R>(origin, &padded) {
-                Some(packet) => {
-                    let groups = self.trace_packet(&packet, origin, &padded, t_min, t_max);
-                    for (i, hit) in out.iter_mut().enumerate() {
-                        *hit = groups[i / LANES].hit(i % LANES);
-                    }
+            if let Some(packet) = Packet::new::<R>(origin, &padded) {
+                for (g, lanes) in groups.iter_mut().enumerate() {
+                    lanes.aim(&padded[g * LANES..(g + 1) * LANES], t_max);
                 }
-                None => {
-                    for (dir, hit) in dirs.iter().zip(out.iter_mut()) {
-                        *hit = self.closest_hit(&Ray::new(origin, *dir), t_min, t_max);
-                    }
+                self.trace_packet(&packet, &mut groups, t_min, t_max);
+                for (i, hit) in out.iter_mut().enumerate() {
+                    *hit = groups[i / LANES].hit(i % LANES);
+                }
+            } else {
+                for (dir, hit) in dirs.iter().zip(out.iter_mut()) {
+                    *hit = self.closest_hit(&Ray::new(origin, *dir), t_min, t_max);
                 }
             }
         }
     }
 
-    fn trace_packet(
-        &self,
-        packet: &Packet,
-        origin: V3<R>,
-        dirs: &[V3<R>; RAYS],
-        t_min: R,
-        t_max: R,
-    ) -> Groups<R> {
-        let mut groups: Groups<R> = std::array::from_fn(|g| {
-            let dirs = std::array::from_fn(|i| dirs[g * LANES + i]);
-            Lanes::new(origin, &dirs, t_min, t_max)
-        });
+    fn trace_packet(&self, packet: &Packet, groups: &mut Groups<R>, t_min: R, t_max: R) {
         let mut mailbox = PacketMailbox([u32::MAX; MAILBOX]);
-        // A cone around the whole packet, then one around each group.
-        let t_min = t_min.to_f64();
-        let cone = Cone::new(&packet.rays, t_min);
-        let group_cones: [Option<Cone>; GROUPS] =
-            std::array::from_fn(|g| Cone::new(&packet.rays[g * LANES..(g + 1) * LANES], t_min));
+        let origin = DVec3::from_array(packet.rays[0].o);
+        let cones = Cones::new(packet, t_min.to_f64());
         for level in &self.levels {
             level.walk_packet(
                 packet,
-                &mut groups,
+                groups,
                 t_max,
                 self.empty_space,
                 |ids, groups, live| {
+                    // The groups with a ray still searching.
+                    let searching = (0..GROUPS).fold(0, |mask, g| {
+                        mask | u32::from(live >> (g * LANES) & ((1 << LANES) - 1) != 0) << g
+                    });
                     for &i in ids {
                         if !mailbox.first_visit(i) {
                             continue;
                         }
                         let sphere = &self.spheres[i as usize];
                         let center = sphere.frame.center.to_dvec3();
-                        let bound = sphere.bound.to_f64();
-                        if cone.as_ref().is_some_and(|c| !c.may_hit(center, bound)) {
-                            continue;
-                        }
-                        for (g, lanes) in groups.iter_mut().enumerate() {
-                            let searching = live >> (g * LANES) & ((1 << LANES) - 1) != 0;
-                            if searching
-                                && group_cones[g]
-                                    .as_ref()
-                                    .is_none_or(|c| c.may_hit(center, bound))
-                            {
-                                lanes.test(&sphere.frame, sphere.id);
-                            }
+                        let mut todo =
+                            cones.groups_hit(origin, center, sphere.bound.to_f64(), searching);
+                        while todo != 0 {
+                            let g = todo.trailing_zeros() as usize;
+                            todo &= todo - 1;
+                            groups[g].test(&sphere.frame, sphere.id);
                         }
                     }
                 },
             );
         }
-        groups
     }
 }

@@ -12,7 +12,7 @@ use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
 
 /// A ray in f64, with its length for turning distances into t.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 pub struct Ray64 {
     pub o: [f64; 3],
     pub d: [f64; 3],
