@@ -30,7 +30,7 @@
 //!   the same order (no fused multiply-adds: Rust does not contract), so every
 //!   lane rounds exactly as the one-ray test does.
 
-use super::table::{block_key, box_mask, cell_bit, Block, BLOCK_SHIFT};
+use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
 use super::walk::Ray64;
 use super::{EmptySpace, Level, VoxelHashGrid};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
@@ -714,22 +714,27 @@ impl Level {
         visit: &mut impl FnMut(&[u32]),
     ) {
         let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        // A cell's bit in its block, axis by axis (see `cell_bit`).
+        let side = (1 << BLOCK_SHIFT) - 1;
+        let bit_on = |axis: usize, c: i64| ((c & side) as u32) << (BLOCK_SHIFT as usize * axis);
+        let bit_k = bit_on(k, s);
         for cu in rect.lo[0]..=rect.hi[0] {
+            let bit_ku = bit_k | bit_on(u, cu);
+            // The row of the layer's blocks this cu lies in, offset so that
+            // adding cv's block gives its slot.
+            let row = ((cu >> BLOCK_SHIFT) - blocks.lo[0]) * blocks.width - blocks.lo[1];
             for cv in rect.lo[1]..=rect.hi[1] {
-                let mut c = [0; 3];
-                c[k] = s;
-                c[u] = cu;
-                c[v] = cv;
                 let block = match blocks.state {
-                    LayerState::Fetched => {
-                        let (bu, bv) = (cu >> BLOCK_SHIFT, cv >> BLOCK_SHIFT);
-                        blocks.blocks
-                            [((bu - blocks.lo[0]) * blocks.width + (bv - blocks.lo[1])) as usize]
+                    LayerState::Fetched => blocks.blocks[(row + (cv >> BLOCK_SHIFT)) as usize],
+                    _ => {
+                        let mut c = [0; 3];
+                        (c[k], c[u], c[v]) = (s, cu, cv);
+                        self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT)))
                     }
-                    _ => self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT))),
                 };
-                if let Some(b) = block.filter(|b| b.holds(cell_bit(c))) {
-                    visit(self.candidates(b.cell_index(cell_bit(c))));
+                let bit = bit_ku | bit_on(v, cv);
+                if let Some(b) = block.filter(|b| b.holds(bit)) {
+                    visit(self.candidates(b.cell_index(bit)));
                 }
             }
         }
