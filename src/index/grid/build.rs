@@ -94,18 +94,26 @@ const MAX_COARSENING: i32 = 16;
 /// A level's cells double while the mean number of sphere centres per
 /// occupied cell stays at most this.
 const MAX_CENTRES_PER_CELL: f64 = 2.0;
-/// Bits of the bitmap that estimates how many cells the centres occupy.
-const OCCUPANCY_BITS: usize = 1 << 22;
+/// Bits of the bitmap that estimates how many cells the centres occupy, per
+/// centre (rounded up to a power of two) and at the least and most.
+const OCCUPANCY_BITS_PER_CENTRE: usize = 4;
+const MIN_OCCUPANCY_BITS: usize = 1 << 12;
+const MAX_OCCUPANCY_BITS: usize = 1 << 22;
 
 /// The mean number of sphere centres per occupied cell of side `cell`.
 ///
 /// The occupied cells are counted by linear counting (Whang et al. 1990):
 /// hash every centre's cell into a bitmap of m bits; with z bits left clear,
 /// `m·ln(m/z)` estimates the number of distinct cells, within a few percent
-/// while they number less than a few times m.
+/// while they number less than a few times m. The bitmap is sized to the
+/// centres, which a level may not outnumber by more than m allows: a small
+/// scene neither zeroes nor holds a large one.
 fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
-    const WORDS: usize = OCCUPANCY_BITS / 64;
-    // One bitmap per thread's share, not per small chunk: a bitmap is 512 KiB.
+    let bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
+        .next_power_of_two()
+        .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
+    let (words, shift) = (bits / 64, 64 - bits.trailing_zeros());
+    // One bitmap per thread's share, not per small chunk: a bitmap may be 512 KiB.
     let share = ids
         .len()
         .div_ceil(2 * rayon::current_num_threads())
@@ -113,7 +121,7 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
     let bitmap = ids
         .par_chunks(share)
         .map(|chunk| {
-            let mut bits = vec![0u64; WORDS];
+            let mut bits = vec![0u64; words];
             for &id in chunk {
                 let c = (extents[id as usize].center / cell)
                     .to_array()
@@ -121,13 +129,13 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
                 let key = (c[0] as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
                     ^ (c[1] as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
                     ^ (c[2] as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
-                let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 42;
+                let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> shift;
                 bits[h as usize / 64] |= 1 << (h % 64);
             }
             bits
         })
         .reduce(
-            || vec![0u64; WORDS],
+            || vec![0u64; words],
             |mut a, b| {
                 a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
                 a
@@ -138,7 +146,7 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
         .map(|w| w.count_zeros() as f64)
         .sum::<f64>()
         .max(1.0);
-    let m = OCCUPANCY_BITS as f64;
+    let m = bits as f64;
     let occupied = m * (m / clear).ln();
     ids.len() as f64 / occupied.max(1.0)
 }
@@ -602,6 +610,37 @@ mod tests {
                 (low, high)
             })
             .collect()
+    }
+
+    #[test]
+    fn occupied_cells_are_estimated_for_small_and_large_levels() {
+        // `per_cell` centres in each of `cells` unit cells (at their middles).
+        let estimate = |cells: usize, per_cell: usize| {
+            let extents: Vec<Extent> = (0..cells * per_cell)
+                .map(|i| {
+                    let c = (i / per_cell) as f64;
+                    Extent {
+                        center: DVec3::new(
+                            c % 97.0,
+                            (c / 97.0).floor() % 89.0,
+                            (c / 8633.0).floor(),
+                        ) + 0.5,
+                        reach: 0.1,
+                        slack: 0.0,
+                    }
+                })
+                .collect();
+            let ids: Vec<u32> = (0..extents.len() as u32).collect();
+            centres_per_occupied_cell(&extents, &ids, 1.0)
+        };
+        for (cells, per_cell) in [(3, 1), (40, 5), (1_000, 2), (200_000, 1), (300_000, 3)] {
+            let e = estimate(cells, per_cell);
+            let want = per_cell as f64;
+            assert!(
+                (e - want).abs() <= 0.05 * want,
+                "{cells} cells × {per_cell}: {e}"
+            );
+        }
     }
 
     #[test]
