@@ -15,6 +15,7 @@ mod assets;
 mod connection;
 mod error;
 mod http;
+mod memory;
 mod metrics;
 mod registry;
 mod render_route;
@@ -28,7 +29,7 @@ use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{mpsc, Arc};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
@@ -176,6 +177,9 @@ impl Server {
     /// forever. When stopped, waits for every connection to close.
     pub fn run(self) -> io::Result<()> {
         let state = &self.state;
+        // Dropping the sender, on any return, ends the trimmer.
+        let (trimming, stop_trimming) = mpsc::channel::<()>();
+        let trimmer = memory::spawn_trimmer(Arc::clone(state), stop_trimming)?;
         for stream in self.listener.incoming() {
             if state.stopping() {
                 break;
@@ -188,6 +192,8 @@ impl Server {
             }
         }
         state.connections.stop();
+        drop(trimming);
+        let _ = trimmer.join();
         Ok(())
     }
 
