@@ -8,7 +8,8 @@
 //! on the shared rayon pool. A slow or idle client so costs one parked thread
 //! until its deadline, never a place another client's render waits for.
 //! Every wait has a deadline and every buffer a bound, so no client can make
-//! the service grow without limit.
+//! the service grow without limit; once it is quiet, the memory its requests
+//! freed is given back to the system ([`memory`]).
 
 mod admission;
 mod assets;
