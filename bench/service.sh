@@ -285,6 +285,13 @@ instructions() {
     echo
 }
 
+# settle: waits for the renders still queued or running when a load run ended,
+# then 2 s (the server gives free memory back within a second of going quiet).
+settle() {
+    while [ "$(metric voxtrace_renders_in_flight)" != 0 ] || [ "$(metric voxtrace_render_queue_depth)" != 0 ]; do sleep 0.1; done
+    sleep 2
+}
+
 overload() {
     [ -f "$WORK/saturation" ] || {
         start_server
@@ -304,7 +311,7 @@ overload() {
     # resident memory of a fresh server is not what it settles at; the
     # baseline is taken after this, once its connections have closed.
     "$BIN" load --url "http://$ADDR/render" --scene "$WORK/sample256.txt" -c 400 -d 10s --rate "$rate" --json > "$WORK/warm.json"
-    sleep 2
+    settle
     rss0=$(proc VmRSS)
     threads0=$(proc Threads)
     # Peak resident memory from here on (clear_refs 5 resets VmHWM).
@@ -321,7 +328,7 @@ overload() {
         done
         wait "$LOAD"
         echo "    load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
-        sleep 2
+        settle
         rss1=$(proc VmRSS)
         field '"requests %d in %.1f s, status %s, transport errors %s, unfinished %d\n200: %s\n503: %s\naccepted renders/s: %.1f" % (d["requests"], d["elapsed_s"], d["status"], d["errors"], d["unfinished"], d["latency_ms_by_status"].get("200"), d["latency_ms_by_status"].get("503"), d["status"].get("200", 0) / d["elapsed_s"])' < "$WORK/overload.json" | sed 's/^/    /'
         field '"503 without Retry-After: %d" % d["503_without_retry_after"]' < "$WORK/overload.json" | sed 's/^/    /'

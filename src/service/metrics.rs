@@ -17,6 +17,8 @@ const RENDER_SECONDS_BUCKETS: [f64; 12] = [
 pub struct Metrics {
     /// Responses by (route, status).
     requests: Mutex<BTreeMap<(&'static str, u16), u64>>,
+    /// Responses of any kind: their sum, read without the lock.
+    answered: AtomicU64,
     renders: AtomicU64,
     rays: AtomicU64,
     /// Per bucket of [`RENDER_SECONDS_BUCKETS`] (not cumulative), then +Inf.
@@ -34,6 +36,12 @@ impl Metrics {
     pub fn request(&self, route: &'static str, status: u16) {
         let mut requests = self.requests.lock().unwrap_or_else(PoisonError::into_inner);
         *requests.entry((route, status)).or_default() += 1;
+        self.answered.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Responses of any kind so far.
+    pub fn answered(&self) -> u64 {
+        self.answered.load(Ordering::Relaxed)
     }
 
     pub fn render(&self, time: Duration, rays: u64) {

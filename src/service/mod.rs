@@ -8,13 +8,15 @@
 //! on the shared rayon pool. A slow or idle client so costs one parked thread
 //! until its deadline, never a place another client's render waits for.
 //! Every wait has a deadline and every buffer a bound, so no client can make
-//! the service grow without limit.
+//! the service grow without limit; once it is quiet, the memory its requests
+//! freed is given back to the system ([`memory`]).
 
 mod admission;
 mod assets;
 mod connection;
 mod error;
 mod http;
+mod memory;
 mod metrics;
 mod registry;
 mod render_route;
@@ -28,7 +30,7 @@ use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{mpsc, Arc};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
@@ -176,6 +178,9 @@ impl Server {
     /// forever. When stopped, waits for every connection to close.
     pub fn run(self) -> io::Result<()> {
         let state = &self.state;
+        // Dropping the sender, on any return, ends the trimmer.
+        let (trimming, stop_trimming) = mpsc::channel::<()>();
+        let trimmer = memory::spawn_trimmer(Arc::clone(state), stop_trimming)?;
         for stream in self.listener.incoming() {
             if state.stopping() {
                 break;
@@ -188,6 +193,8 @@ impl Server {
             }
         }
         state.connections.stop();
+        drop(trimming);
+        let _ = trimmer.join();
         Ok(())
     }
 
