@@ -10,7 +10,9 @@
 //! once requests stop for a moment. It cannot give back the free memory at
 //! the top of the arenas other than the main one: glibc trims that only in
 //! `free`, once it exceeds the trim threshold, which the sliding mmap
-//! threshold raises to twice the largest block freed so far.
+//! threshold raises to twice the largest block freed so far. So a render of
+//! a small scene must not allocate large blocks: the grid build sizes its
+//! occupancy bitmaps to the scene for that reason, among others.
 //!
 //! On other platforms the trimmer does nothing: their allocators decide for
 //! themselves.
