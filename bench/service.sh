@@ -11,7 +11,8 @@
 # SAT_C (saturation: connections, default 8), SAT_REPS / SAT_REPS_HEAVY (saturation: pairs of
 # runs, default 30 / 12), SAT_N / SAT_N_HEAVY (saturation: requests per run, default 300 / 16),
 # OVERLOAD_DUR (default 60s), OVERLOAD_RUNS (runs after one another on one server, default 1),
-# FUZZ_COUNT (default 100000), VOXTRACE_BIN.
+# FUZZ_COUNT (default 100000), SERVE_ARGS (more `voxtrace serve` options, e.g. "--renders 4"),
+# VOXTRACE_BIN.
 # Needs python3 (slowloris, fuzz, JSON), wrk (apt-get install -y wrk) and, for
 # instructions, valgrind (apt-get install -y valgrind).
 set -euo pipefail
@@ -31,6 +32,7 @@ SAT_N_HEAVY=${SAT_N_HEAVY:-16}
 OVERLOAD_DUR=${OVERLOAD_DUR:-60s}
 OVERLOAD_RUNS=${OVERLOAD_RUNS:-1}
 FUZZ_COUNT=${FUZZ_COUNT:-100000}
+SERVE_ARGS=${SERVE_ARGS:-}
 WORK=$(mktemp -d)
 SERVER=
 cleanup() {
@@ -44,7 +46,8 @@ sed 's/RES 600 600/RES 256 256/' scenes/testSample.txt > "$WORK/sample256.txt"
 "$BIN" gen --spheres 100000 --dist uniform --seed 1 --res 512 512 -o "$WORK/heavy.txt" > /dev/null
 
 start_server() {
-    "$BIN" serve --addr 127.0.0.1:0 "$@" > "$WORK/serve.out" 2> "$WORK/serve.err" &
+    # shellcheck disable=SC2086 # SERVE_ARGS is a list of options
+    "$BIN" serve --addr 127.0.0.1:0 "$@" $SERVE_ARGS > "$WORK/serve.out" 2> "$WORK/serve.err" &
     SERVER=$!
     for _ in $(seq 100); do
         ADDR=$(sed -n 's|^listening on http://||p' "$WORK/serve.out")
