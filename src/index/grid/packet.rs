@@ -213,10 +213,7 @@ impl Packet {
             lo: [f64::INFINITY; 2],
             hi: [f64::NEG_INFINITY; 2],
         };
-        let mut todo = live;
-        while todo != 0 {
-            let i = todo.trailing_zeros() as usize;
-            todo &= todo - 1;
+        for i in set_bits(live) {
             for j in 0..2 {
                 let m = self.slope[j][i];
                 range.lo[j] = range.lo[j].min(m);
@@ -416,10 +413,7 @@ impl Search {
         rays: u64,
     ) {
         let k = packet.axis;
-        let mut todo = rays & self.live;
-        while todo != 0 {
-            let i = todo.trailing_zeros() as usize;
-            todo &= todo - 1;
+        for i in set_bits(rays & self.live) {
             let limit = reach(i, best_t(groups, i)) * packet.rays[i].d[k].abs();
             let limit = limit + limit.abs() * RETIRE_MARGIN;
             self.limit[i] = limit;
@@ -764,6 +758,18 @@ struct LayerBlocks {
     blocks: [Option<Block>; LAYER_BLOCKS],
 }
 
+/// The positions of the bits set in `mask`, lowest first.
+#[inline(always)]
+fn set_bits(mut mask: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
+}
+
 /// The rays of a packet, group by group.
 type Groups<R> = [Lanes<R>; GROUPS];
 
@@ -833,11 +839,9 @@ impl<R: Real> VoxelHashGrid<R> {
                         }
                         let sphere = &self.spheres[i as usize];
                         let center = sphere.frame.center.to_dvec3();
-                        let mut todo =
+                        let hit =
                             cones.groups_hit(origin, center, sphere.bound.to_f64(), searching);
-                        while todo != 0 {
-                            let g = todo.trailing_zeros() as usize;
-                            todo &= todo - 1;
+                        for g in set_bits(u64::from(hit)) {
                             groups[g].test(&sphere.frame, sphere.id);
                         }
                     }
