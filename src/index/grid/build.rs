@@ -105,14 +105,15 @@ const MAX_OCCUPANCY_BITS: usize = 1 << 22;
 /// The occupied cells are counted by linear counting (Whang et al. 1990):
 /// hash every centre's cell into a bitmap of m bits; with z bits left clear,
 /// `m·ln(m/z)` estimates the number of distinct cells, within a few percent
-/// while they number less than a few times m. The bitmap is sized to the
-/// centres, which a level may not outnumber by more than m allows: a small
-/// scene neither zeroes nor holds a large one.
+/// while they number less than a few times m. The bitmap holds four bits
+/// per centre (a power of two, 512 B to 512 KiB), so the cells, never more
+/// than the centres, stay well under m up to 2²⁰ centres, and a small scene
+/// neither zeroes nor keeps a large bitmap.
 fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
-    let bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
+    let bitmap_bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
         .next_power_of_two()
         .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
-    let (words, shift) = (bits / 64, 64 - bits.trailing_zeros());
+    let (words, shift) = (bitmap_bits / 64, 64 - bitmap_bits.trailing_zeros());
     // One bitmap per thread's share, not per small chunk: a bitmap may be 512 KiB.
     let share = ids
         .len()
@@ -146,7 +147,7 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
         .map(|w| w.count_zeros() as f64)
         .sum::<f64>()
         .max(1.0);
-    let m = bits as f64;
+    let m = bitmap_bits as f64;
     let occupied = m * (m / clear).ln();
     ids.len() as f64 / occupied.max(1.0)
 }
