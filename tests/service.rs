@@ -498,12 +498,17 @@ fn stalled_requests_get_408() {
     assert!(slow_body.closed());
 }
 
-#[test]
-fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
+/// A server with one render slot and `queue` places, its slot held by a
+/// costly render (errors asked for as JSON) until its `budget`. Returns once
+/// that render runs, with the thread that gets its reply.
+fn slot_held_by_costly_render(
+    queue: usize,
+    budget: Duration,
+) -> (ServerHandle, std::thread::JoinHandle<Reply>) {
     let server = start(ServiceConfig {
         concurrent_renders: 1,
-        queue: 0,
-        render_timeout: Duration::from_millis(1500),
+        queue,
+        render_timeout: budget,
         ..ServiceConfig::default()
     });
     let addr = server.addr();
@@ -516,6 +521,13 @@ fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
         )
     });
     wait_for_metric(addr, "voxtrace_renders_in_flight", 1);
+    (server, costly)
+}
+
+#[test]
+fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
+    let (server, costly) = slot_held_by_costly_render(0, Duration::from_millis(1500));
+    let addr = server.addr();
     let turned_away = Client::connect(addr).request(
         "POST",
         "/render",
@@ -546,17 +558,8 @@ fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
 fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered() {
     // One slot and one place in the queue. A costly render holds the slot
     // until its budget; a second client queues behind it, then leaves.
-    let server = start(ServiceConfig {
-        concurrent_renders: 1,
-        queue: 1,
-        render_timeout: Duration::from_secs(4),
-        ..ServiceConfig::default()
-    });
+    let (server, costly) = slot_held_by_costly_render(1, Duration::from_secs(4));
     let addr = server.addr();
-    let costly = std::thread::spawn(move || {
-        Client::connect(addr).request("POST", "/render?spp=64", &[], &costly_scene())
-    });
-    wait_for_metric(addr, "voxtrace_renders_in_flight", 1);
     let costly_started = Instant::now();
     let scene = sample("testSample.txt");
     let mut leaver = Client::connect(addr);
