@@ -7,7 +7,7 @@ use voxtrace::render::{render_scene, RenderOptions};
 use voxtrace::scene::{self, Scene};
 
 fn reference_scenes() -> Vec<(PathBuf, Scene)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/reference");
     let mut scenes = vec![];
     for dialect in ["classic", "tinygraphics"] {
         for entry in std::fs::read_dir(root.join(dialect).join("scenes")).unwrap() {

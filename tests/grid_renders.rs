@@ -29,7 +29,7 @@ fn the_grid_is_the_default() {
 
 #[test]
 fn every_reference_scene_is_byte_identical() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/reference");
     let mut checked = 0;
     for dialect in ["classic", "tinygraphics"] {
         for entry in std::fs::read_dir(root.join(dialect).join("scenes")).unwrap() {

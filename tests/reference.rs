@@ -1,12 +1,12 @@
 //! The course's reference images: every key must be reproduced with at least
-//! 99.9% of pixels within one level in every channel (../shared/reference/README.md).
+//! 99.9% of pixels within one level in every channel (tests/fixtures/reference/README.md).
 
 use std::path::{Path, PathBuf};
 use voxtrace::render::{render_scene, RenderOptions};
 use voxtrace::scene;
 
 fn reference_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/reference")
 }
 
 fn render(path: &Path) -> voxtrace::output::Image {
@@ -21,7 +21,7 @@ fn render(path: &Path) -> voxtrace::output::Image {
 fn classic_keys_match_within_one_level() {
     let keys = reference_dir().join("classic/keys");
     let mut checked = 0;
-    for entry in std::fs::read_dir(&keys).expect("../shared/reference/classic/keys") {
+    for entry in std::fs::read_dir(&keys).expect("tests/fixtures/reference/classic/keys") {
         let key_path = entry.unwrap().path();
         let name = key_path.file_stem().unwrap().to_str().unwrap().to_owned();
         let key = image::open(&key_path).unwrap().to_rgb8();

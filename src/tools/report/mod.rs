@@ -31,7 +31,7 @@ pub struct ReportArgs {
     #[arg(long, default_value = "docs/report")]
     out: PathBuf,
     /// The course's reference scenes (with classic/ and tinygraphics/).
-    #[arg(long, default_value = "../shared/reference")]
+    #[arg(long, default_value = "tests/fixtures/reference")]
     reference: PathBuf,
     /// The hard-case scenes.
     #[arg(long, default_value = "scenes/hard")]

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 /// Scenes are grouped by where they come from; each family gets its own plot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, clap::ValueEnum)]
 pub enum Family {
-    /// The course's scenes, both dialects (`../shared/reference`).
+    /// The course's scenes, both dialects (`tests/fixtures/reference`).
     Reference,
     /// `scenes/hard`: the numerical traps.
     Hard,
