@@ -51,6 +51,13 @@ enum Kind {
     OnCorners,
     /// Ellipsoids, some very flat.
     Ellipsoids,
+    /// One sphere of radius 10⁵ beside tiny ones (10⁻³..10⁻²): rays from
+    /// its far side reach them from 10⁸ radii, beyond f32's near frame.
+    FarAndTiny,
+    /// Spheres on the surface of a hollow ball: rays cross its empty inside.
+    HollowShell,
+    /// A mixed scene scaled by 10^±4 and moved by up to 10⁵.
+    Rescaled,
 }
 
 fn scene(kind: Kind, seed: u64) -> Vec<Ellipsoid<f32>> {
@@ -95,6 +102,26 @@ fn scene(kind: Kind, seed: u64) -> Vec<Ellipsoid<f32>> {
                 );
                 let flip = Vec3::new(if rng.below(2) == 0 { 1.0 } else { -1.0 }, 1.0, 1.0);
                 shapes.push(Ellipsoid::new(rng.point(10.0), scale * flip));
+            }
+        }
+        Kind::FarAndTiny => {
+            shapes.push(sphere(Vec3::new(0.0, -1.0e5 - 3.0, 0.0), 1.0e5));
+            for _ in 0..n {
+                shapes.push(sphere(rng.point(3.0), rng.log_range(1e-3, 1e-2)));
+            }
+        }
+        Kind::HollowShell => {
+            for _ in 0..n {
+                let c = rng.point(1.0).normalize_or(Vec3::Y) * 5.0;
+                shapes.push(sphere(c, rng.log_range(0.05, 0.4)));
+            }
+        }
+        Kind::Rescaled => {
+            let scale = 10f32.powf(rng.range(-4.0, 4.0));
+            let shift = rng.point(1.0) * 10f32.powf(rng.range(0.0, 5.0));
+            for _ in 0..n {
+                let c = rng.point(20.0) * scale + shift;
+                shapes.push(sphere(c, rng.log_range(1e-3, 10.0) * scale));
             }
         }
     }
@@ -188,14 +215,19 @@ fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
     }
 }
 
+const ALL_KINDS: [Kind; 8] = [
+    Kind::Mixed,
+    Kind::Clustered,
+    Kind::HugeAndTiny,
+    Kind::OnCorners,
+    Kind::Ellipsoids,
+    Kind::FarAndTiny,
+    Kind::HollowShell,
+    Kind::Rescaled,
+];
+
 fn kinds() -> impl Strategy<Value = Kind> {
-    prop_oneof![
-        Just(Kind::Mixed),
-        Just(Kind::Clustered),
-        Just(Kind::HugeAndTiny),
-        Just(Kind::OnCorners),
-        Just(Kind::Ellipsoids),
-    ]
+    proptest::sample::select(ALL_KINDS.to_vec())
 }
 
 proptest! {
@@ -210,16 +242,7 @@ proptest! {
 /// Rays from the eye through a pixel grid, as the renderer shoots them.
 #[test]
 fn eye_rays_agree_on_every_kind_of_scene() {
-    for (i, kind) in [
-        Kind::Mixed,
-        Kind::Clustered,
-        Kind::HugeAndTiny,
-        Kind::OnCorners,
-        Kind::Ellipsoids,
-    ]
-    .into_iter()
-    .enumerate()
-    {
+    for (i, kind) in ALL_KINDS.into_iter().enumerate() {
         let shapes = scene(kind, 7 + i as u64);
         let brute = BruteForce::new(&shapes);
         let grid = VoxelHashGrid::new(&shapes);
@@ -334,14 +357,7 @@ proptest! {
 /// where a tile is a small fraction of a cell and where it spans several.
 #[test]
 fn eye_tiles_agree_on_every_kind_of_scene() {
-    let kinds = [
-        Kind::Mixed,
-        Kind::Clustered,
-        Kind::HugeAndTiny,
-        Kind::OnCorners,
-        Kind::Ellipsoids,
-    ];
-    for (i, kind) in kinds.into_iter().enumerate() {
+    for (i, kind) in ALL_KINDS.into_iter().enumerate() {
         let shapes = scene(kind, 11 + i as u64);
         let brute = BruteForce::new(&shapes);
         let grid = VoxelHashGrid::new(&shapes);

@@ -18,6 +18,9 @@ pub struct BenchArgs {
     /// Threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Skip the baselines (the grid probing every cell, and brute force).
+    #[arg(long)]
+    no_baselines: bool,
 }
 
 pub fn run(args: BenchArgs) -> Result<(), CliError> {
@@ -28,14 +31,14 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
             for (name, distribution, spheres) in builtin_names() {
                 eprintln!("bench: {name}");
                 let text = builtin_scene(distribution, spheres);
-                let result =
-                    bench_text(&name, &text).map_err(|e| CliError::Failed(e.to_string()))?;
+                let result = bench_text(&name, &text, !args.no_baselines)
+                    .map_err(|e| CliError::Failed(e.to_string()))?;
                 results.push(result);
             }
         } else {
             for path in &args.scene {
                 eprintln!("bench: {}", path.display());
-                results.push(bench_file(path).map_err(|e| match e {
+                results.push(bench_file(path, !args.no_baselines).map_err(|e| match e {
                     crate::tools::bench::BenchError::Scene(path, error) => {
                         CliError::Scene { path, error }
                     }

@@ -15,6 +15,19 @@
 //! the difference of two nearly equal vectors along `e` when the origin is far,
 //! so we project its leftover `e` component out once more. The roots are
 //! `q/a` and `c/q` with `q = −b − sign(b)·√disc`, neither of which cancels.
+//!
+//! # Precision where a ray needs it
+//! In precision `R` the test's error grows with the origin's distance from
+//! the centre in radii: `f` itself is known to `u·|f|` (u the unit roundoff),
+//! so `l`, and with it the hit/miss decision, is off by up to a few `u·|f|`.
+//! A sphere of radius 1e-3 seen from 1e4 away has `|f| = 10⁷`, and in f32
+//! `u·|f| ≈ 0.6`: the rim is noise. So the test runs in `R` only while
+//! `|f|² ≤` [`Real::NEAR_FRAME`] (2²⁶ in f32: `|f| ≤ 8192`, where `u·|f| ≤
+//! 5·10⁻⁴`) and otherwise in f64, rounding its roots to `R`. That keeps the
+//! error of every test within a small fixed fraction of the sphere's own
+//! size, whatever the scene's coordinates; an index pads each sphere by that
+//! fraction of its radius (see `index::grid::build`), not by the scene's
+//! extent. Deciding costs one comparison of a value the test computes anyway.
 
 use super::{Ray, Real, Vec3Ops, V3};
 use crate::scene::Sphere;
@@ -116,32 +129,55 @@ impl<R: Real> Ellipsoid<R> {
     /// offset `±√(1 − |l|²)` along the ray, which stays accurate when `t`
     /// is large compared with the ellipsoid, then projected onto the surface.
     pub fn surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
+        if self.frame().is_far(ray) {
+            return self.wide_surface_point(ray, t);
+        }
         let local = self.local(ray);
-        let LocalRay { e, a, b, l, .. } = local;
-        let half_chord = (R::one() - l.dot(l)).max(R::zero()).sqrt() / a.sqrt();
-        // Which root `t` is. Comparing it with the midpoint −b/a fails when
-        // the half chord is below t's ulp (radius 1e-3 at distance 1e4 in
-        // f32: ulp(1e4) ≈ 1e-3): the far half was drawn with its normal
-        // mirrored. `t` is bit-identical to the root `intersect` returned, so
-        // compare it with both; when the roots themselves round to the same
-        // float, the ray enters if and only if it starts outside.
-        let entering = match Self::roots(&local) {
-            Some((near, far, c)) if near == far => c > R::zero(),
-            Some((near, far, _)) => (t - near).abs() <= (t - far).abs(),
-            None => t < -b / a,
+        let entering = entering(Self::roots(&local), t, -local.b / local.a);
+        let (offset, outward) = self.offset_and_normal(&local, entering);
+        let error = (self.center.abs() + offset.abs()) * R::gamma(8);
+        Self::surface(self.center + offset, outward, ray, error)
+    }
+
+    /// [`Self::surface_point`] computed in f64 and rounded to `R`, for rays
+    /// from beyond [`Real::NEAR_FRAME`] radii.
+    fn wide_surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
+        let wide = Ellipsoid::<f64> {
+            center: self.center.to_dvec3(),
+            scale: self.scale.to_dvec3(),
+            inv_scale: self.inv_scale.to_dvec3(),
         };
+        let local = wide.local(&to_wide(ray));
+        let roots = Ellipsoid::<f64>::roots(&local).map(|(near, far, c)| {
+            let r = R::from_f64;
+            (r(near), r(far), r(c))
+        });
+        let entering = entering(roots, t, R::from_f64(-local.b / local.a));
+        let (offset, outward) = wide.offset_and_normal(&local, entering);
+        let point = V3::<R>::from_dvec3(wide.center + offset);
+        // The f64 point's own error is negligible beside its rounding to R.
+        let error = (self.center.abs() + V3::<R>::from_dvec3(offset).abs()) * R::gamma(2);
+        Self::surface(point, V3::<R>::from_dvec3(outward), ray, error)
+    }
+
+    /// The point's offset from the centre and the outward unit normal there,
+    /// rebuilt from the closest approach `l` plus the half chord.
+    fn offset_and_normal(&self, local: &LocalRay<R>, entering: bool) -> (V3<R>, V3<R>) {
+        let LocalRay { e, a, l, .. } = *local;
+        let half_chord = (R::one() - l.dot(l)).max(R::zero()).sqrt() / a.sqrt();
         let local = if entering {
             l - e * half_chord
         } else {
             l + e * half_chord
         };
         let local = local / local.length();
-        let offset = local * self.scale;
-        let outward = (local * self.inv_scale).normalize();
+        (local * self.scale, (local * self.inv_scale).normalize())
+    }
+
+    fn surface(point: V3<R>, outward: V3<R>, ray: &Ray<R>, error: V3<R>) -> SurfacePoint<R> {
         let inside = outward.dot(ray.dir) > R::zero();
-        let error = (self.center.abs() + offset.abs()) * R::gamma(8);
         SurfacePoint {
-            point: self.center + offset,
+            point,
             normal: if inside { -outward } else { outward },
             inside,
             error,
@@ -155,7 +191,46 @@ impl<R: Real> Ellipsoid<R> {
     }
 }
 
+/// Whether the hit at `t` (one of `roots`, as [`Ellipsoid::roots`] returns
+/// them in `R`) enters the surface. Comparing `t` with the midpoint
+/// `midpoint` (−b/a) fails when the half chord is below t's ulp (radius 1e-3
+/// at distance 1e4 in f32: ulp(1e4) ≈ 1e-3): the far half was drawn with its
+/// normal mirrored. `t` is bit-identical to the root `intersect` returned, so
+/// compare it with both; when the roots themselves round to the same float,
+/// the ray enters if and only if it starts outside.
+fn entering<R: Real>(roots: Option<(R, R, R)>, t: R, midpoint: R) -> bool {
+    match roots {
+        Some((near, far, c)) if near == far => c > R::zero(),
+        Some((near, far, _)) => (t - near).abs() <= (t - far).abs(),
+        None => t < midpoint,
+    }
+}
+
+fn to_wide<R: Real>(ray: &Ray<R>) -> Ray<f64> {
+    Ray::new(ray.origin.to_dvec3(), ray.dir.to_dvec3())
+}
+
+/// The nearest of two roots (nearer first) in the open interval (t_min, t_max).
+#[inline(always)]
+fn first_in<R: Real>(near: R, far: R, t_min: R, t_max: R) -> Option<R> {
+    if near > t_min && near < t_max {
+        Some(near)
+    } else if far > t_min && far < t_max {
+        Some(far)
+    } else {
+        None
+    }
+}
+
 impl<R: Real> UnitSphereFrame<R> {
+    /// Whether the ray starts beyond [`Real::NEAR_FRAME`] radii, where the
+    /// test runs in f64. The packet lanes decide with the same operations.
+    #[inline(always)]
+    pub fn is_far(&self, ray: &Ray<R>) -> bool {
+        let f = (ray.origin - self.center) * self.inv_scale;
+        f.dot(f) > R::NEAR_FRAME
+    }
+
     #[inline(always)]
     fn local(&self, ray: &Ray<R>) -> LocalRay<R> {
         let f = (ray.origin - self.center) * self.inv_scale;
@@ -170,14 +245,24 @@ impl<R: Real> UnitSphereFrame<R> {
     /// [`Ellipsoid::intersect`] (which calls this).
     #[inline]
     pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
-        let (near, far, _) = Ellipsoid::roots(&self.local(ray))?;
-        if near > t_min && near < t_max {
-            Some(near)
-        } else if far > t_min && far < t_max {
-            Some(far)
-        } else {
-            None
+        let local = self.local(ray);
+        if local.f.dot(local.f) > R::NEAR_FRAME {
+            return self.intersect_wide(ray, t_min, t_max);
         }
+        let (near, far, _) = Ellipsoid::roots(&local)?;
+        first_in(near, far, t_min, t_max)
+    }
+
+    /// The test in f64, its roots rounded to `R` before they are compared
+    /// with the interval (so that a root is in it exactly when its `R` is).
+    #[inline(never)]
+    pub fn intersect_wide(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
+        let wide = UnitSphereFrame::<f64> {
+            center: self.center.to_dvec3(),
+            inv_scale: self.inv_scale.to_dvec3(),
+        };
+        let (near, far, _) = Ellipsoid::<f64>::roots(&wide.local(&to_wide(ray)))?;
+        first_in(R::from_f64(near), R::from_f64(far), t_min, t_max)
     }
 }
 

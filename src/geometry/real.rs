@@ -9,6 +9,11 @@ pub trait Real: num_traits::Float + Debug + Default + Send + Sync + 'static {
     type Vec3: Vec3Ops<Self>;
     /// Half the distance from 1 to the next float: the unit roundoff of one operation.
     const UNIT_ROUNDOFF: Self;
+    /// The largest `|f|²` the hit test computes in this precision, with `f`
+    /// the ray's origin in the ellipsoid's unit-sphere frame (its distance
+    /// from the centre in radii); beyond it the test runs in f64. See
+    /// [`super::ellipsoid`] for why this bounds the test's error.
+    const NEAR_FRAME: Self;
     fn from_f64(x: f64) -> Self;
     fn to_f64(self) -> f64;
     /// The next float towards +∞ (−0 and +0 both step to the smallest positive).
@@ -61,10 +66,11 @@ pub trait Vec3Ops<R>:
 pub type V3<R> = <R as Real>::Vec3;
 
 macro_rules! impl_real {
-    ($float:ty, $vec:ty) => {
+    ($float:ty, $vec:ty, $near_frame:expr) => {
         impl Real for $float {
             type Vec3 = $vec;
             const UNIT_ROUNDOFF: Self = <$float>::EPSILON * 0.5;
+            const NEAR_FRAME: Self = $near_frame;
             #[inline]
             fn from_f64(x: f64) -> Self {
                 x as $float
@@ -145,5 +151,5 @@ macro_rules! impl_real {
     };
 }
 
-impl_real!(f32, Vec3);
-impl_real!(f64, DVec3);
+impl_real!(f32, Vec3, (1u32 << 26) as f32);
+impl_real!(f64, DVec3, f64::INFINITY);

@@ -45,12 +45,12 @@ pub struct BenchResult {
     /// Eye rays one at a time.
     pub primary_single_mrays_s: f64,
     pub shadow_mrays_s: f64,
-    /// Primary rays when every cell costs a probe (no empty-block skipping).
-    pub primary_mrays_s_probe_every_cell: f64,
-    pub brute_primary_mrays_s: f64,
+    /// Primary rays when every cell costs a probe (no empty-space skipping).
+    pub primary_mrays_s_probe_every_cell: Option<f64>,
+    pub brute_primary_mrays_s: Option<f64>,
     /// How many pixels brute force traced to measure its speed.
     pub brute_sample: usize,
-    pub speedup_vs_brute: f64,
+    pub speedup_vs_brute: Option<f64>,
     pub primary_hit_fraction: f64,
 }
 
@@ -103,10 +103,10 @@ pub fn builtin_names() -> Vec<(String, Distribution, usize)> {
 }
 
 /// Reads and benchmarks a scene file.
-pub fn bench_file(path: &std::path::Path) -> Result<BenchResult, BenchError> {
+pub fn bench_file(path: &std::path::Path, baselines: bool) -> Result<BenchResult, BenchError> {
     let name = path.display().to_string();
     let text = std::fs::read(path).map_err(|e| BenchError::Read(name.clone(), e))?;
-    bench_text(&name, &text)
+    bench_text(&name, &text, baselines)
 }
 
 fn median(mut samples: Vec<f64>) -> f64 {
@@ -127,8 +127,9 @@ fn timed(mut pass: impl FnMut()) -> f64 {
     )
 }
 
-/// Benchmarks one scene given as text.
-pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
+/// Benchmarks one scene given as text; `baselines` adds the grid without
+/// empty-space skipping and brute force.
+pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResult, BenchError> {
     let started = Instant::now();
     let scene = scene::parse(text).map_err(|e| BenchError::Scene(name.to_owned(), e))?;
     let parse_s = started.elapsed().as_secs_f64();
@@ -146,17 +147,22 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
     let primary_s = timed(|| hits = primary_packets(&grid, &dirs));
     let mut single = Vec::new();
     let single_s = timed(|| single = primary_pass(&grid, &eye));
-    let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
-    let probing_s = timed(|| drop(primary_pass(&probing, &eye)));
     let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
     let shadow_s = timed(|| {
         std::hint::black_box(shadow_pass(&grid, &shadow));
     });
-    let (brute_sample, brute_s) = brute_rate(&shapes, &eye);
-
     let mrays = |rays: usize, seconds: f64| rays as f64 / seconds.max(1e-9) / 1e6;
+    let probing = baselines.then(|| {
+        let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
+        mrays(eye.len(), timed(|| drop(primary_pass(&probing, &eye))))
+    });
+    let (brute_sample, brute) = if baselines {
+        let (sample, seconds) = brute_rate(&shapes, &eye);
+        (sample, Some(mrays(sample, seconds)))
+    } else {
+        (0, None)
+    };
     let primary = mrays(eye.len(), primary_s);
-    let brute = mrays(brute_sample, brute_s);
     Ok(BenchResult {
         scene: name.to_owned(),
         spheres: shapes.len(),
@@ -168,10 +174,10 @@ pub fn bench_text(name: &str, text: &[u8]) -> Result<BenchResult, BenchError> {
         primary_mrays_s: primary,
         primary_single_mrays_s: mrays(eye.len(), single_s),
         shadow_mrays_s: mrays(shadow.len(), shadow_s),
-        primary_mrays_s_probe_every_cell: mrays(eye.len(), probing_s),
+        primary_mrays_s_probe_every_cell: probing,
         brute_primary_mrays_s: brute,
         brute_sample,
-        speedup_vs_brute: primary / brute,
+        speedup_vs_brute: brute.map(|b| primary / b),
         primary_hit_fraction: hits.iter().flatten().count() as f64 / eye.len().max(1) as f64,
     })
 }
@@ -277,7 +283,7 @@ pub fn markdown_table(results: &[BenchResult]) -> String {
     );
     for r in results {
         out += &format!(
-            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.4} | {:.0}× |\n",
+            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {} | {} | {} |\n",
             r.scene,
             r.spheres,
             r.parse_s,
@@ -287,10 +293,14 @@ pub fn markdown_table(results: &[BenchResult]) -> String {
             r.primary_mrays_s,
             r.primary_single_mrays_s,
             r.shadow_mrays_s,
-            r.primary_mrays_s_probe_every_cell,
-            r.brute_primary_mrays_s,
-            r.speedup_vs_brute
+            or_dash(r.primary_mrays_s_probe_every_cell, |v| format!("{v:.2}")),
+            or_dash(r.brute_primary_mrays_s, |v| format!("{v:.4}")),
+            or_dash(r.speedup_vs_brute, |v| format!("{v:.0}×")),
         );
     }
     out
+}
+
+fn or_dash(value: Option<f64>, show: impl Fn(f64) -> String) -> String {
+    value.map_or_else(|| "—".to_owned(), show)
 }

@@ -27,16 +27,22 @@
 //! The grid must return what brute force returns, and brute force reports what
 //! the rounded hit test says, which may be a grazing "hit" a tiny bit outside
 //! the true surface. In the unit-sphere frame the test works on `f = (o − C)/S`,
-//! whose rounding error is about `u·|f|` (u = unit roundoff of `R`); a false
-//! hit therefore lies within `c·u·|o − C|·(s_max/s_min)` of the surface. Every
+//! whose rounding error is about `u·|f|` (u = unit roundoff of the precision
+//! the test runs in); a false hit therefore lies within `c·u·|f|·s_max` of the
+//! surface. The test runs in `R` only while `|f| ≤ √NEAR_FRAME` and in f64
+//! beyond (see `geometry::ellipsoid`), so `u·|f|` is at most
+//! `u_R·√NEAR_FRAME` (5·10⁻⁴ in f32), or `u_64·|f|` with `|f| ≤ 2M/s_min`: every
 //! ray the renderer traces starts inside the scene's bounding box (or at the
-//! eye at the origin), so `|o − C| ≤ 2M`, M the largest coordinate magnitude
-//! of the scene. Near tangency the same error reaches the chord under a square
-//! root: the returned t may precede the true entry by `ρ·√(c·u·|f|)` along the
-//! ray; that is the level's `slack`, which delays stopping instead of enlarging
+//! eye at the origin), M the largest coordinate magnitude of the scene. So a
+//! sphere's pad is a small fraction of its own radius, whatever else the
+//! scene holds: one huge sphere no longer widens every small one. Near
+//! tangency the same error reaches the chord under a square root: the
+//! returned t may precede the true entry by `ρ·√(c·u·|f|)` along the ray;
+//! that is the level's `slack`, which delays stopping instead of enlarging
 //! cells. [`ERROR_SAFETY`] is the `c`, chosen with a wide margin over the ~4
 //! the operation count gives; the property tests check the bound.
 
+use super::occupancy::Occupancy;
 use super::table::{
     block_key, cell_bit, regions, Block, BlockKey, BlockTable, RegionTable, BLOCK_SHIFT,
     BLOCK_SIDE, MAX_BLOCKS_PER_AXIS,
@@ -70,17 +76,22 @@ struct Extent {
 
 impl Extent {
     fn of<R: Real>(shape: &Ellipsoid<R>, m: f64) -> Extent {
-        let u = R::UNIT_ROUNDOFF.to_f64() * ERROR_SAFETY;
         let center = shape.center.to_dvec3();
         let scale = shape.scale.to_dvec3().abs();
         let (rho, thinnest) = (scale.max_element(), scale.min_element());
+        // |f| for any origin in the scene, and the two precisions the test
+        // may run in: `R` up to √NEAR_FRAME, f64 beyond (see the module docs).
         let far = 2.0 * m / thinnest;
-        let pad = u * 2.0 * m * (rho / thinnest) + TRAVERSAL_ROUNDOFF * m;
-        let slack = rho * (u * far).sqrt() + pad;
+        let near_frame = R::NEAR_FRAME.to_f64().sqrt();
+        let in_r = ERROR_SAFETY * R::UNIT_ROUNDOFF.to_f64() * far.min(near_frame);
+        let in_f64 = ERROR_SAFETY * (f64::EPSILON / 2.0) * far;
+        let error = in_r.max(in_f64);
+        let pad = error * rho + TRAVERSAL_ROUNDOFF * m;
+        let chord = rho * error.sqrt();
         Extent {
             center,
             reach: rho + pad,
-            slack,
+            slack: chord + pad,
         }
     }
 
@@ -93,7 +104,7 @@ impl Extent {
 const MAX_COARSENING: i32 = 16;
 /// A level's cells double while the mean number of sphere centres per
 /// occupied cell stays at most this.
-const MAX_CENTRES_PER_CELL: f64 = 2.0;
+const MAX_CENTRES_PER_CELL: f64 = 1.2;
 /// Bits of the bitmap that estimates how many cells the centres occupy, per
 /// centre (rounded up to a power of two) and at the least and most.
 const OCCUPANCY_BITS_PER_CENTRE: usize = 4;
@@ -304,6 +315,7 @@ fn build_level(
     } else {
         sorted_cells::<u128>(&code, ids, cell_box, rank, order)
     };
+    let regions = regions(&blocks);
     Level {
         cell,
         origin: lo,
@@ -311,7 +323,8 @@ fn build_level(
         dims: dims.to_array(),
         slack,
         table: BlockTable::new(&blocks),
-        regions: RegionTable::new(&regions(&blocks)),
+        occupancy: Occupancy::new(dims.to_array(), regions.iter().map(|&(key, _)| key)),
+        regions: RegionTable::new(&regions),
         cell_start,
         ids: candidates,
     }
@@ -611,6 +624,54 @@ mod tests {
                 (low, high)
             })
             .collect()
+    }
+
+    /// The pad's claim, tested directly: whenever the f32 test reports a
+    /// hit, the ray's line truly passes within the sphere's reach (radius
+    /// plus pad) of its centre. Rays graze spheres at 10⁻⁸..10⁻² radii
+    /// outside the rim, from 1 to 10⁶ radii away, at scales 10⁻⁴..10⁴, so
+    /// both the f32 and the f64 branch of the test are exercised.
+    #[test]
+    fn every_reported_hit_lies_within_the_reach() {
+        use crate::geometry::Ray;
+        use glam::Vec3;
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut unit = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut hits, mut outside) = (0, 0);
+        for _ in 0..200_000 {
+            let scale = 10f64.powf(unit() * 8.0 - 4.0);
+            let r = scale * (0.5 + unit());
+            let center = DVec3::new(unit(), unit(), unit()) * 100.0 * scale;
+            let shape = Ellipsoid::<f32>::new(center.as_vec3(), Vec3::splat(r as f32));
+            let d = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
+            let side = d.any_orthonormal_vector();
+            let miss = 1.0 + 10f64.powf(-2.0 - 6.0 * unit());
+            let back = r * 10f64.powf(6.0 * unit());
+            let origin = center + side * (r * miss) - d * back;
+            let ray = Ray::new(origin.as_vec3(), d.as_vec3());
+            if shape.intersect(&ray, 0.0, f32::INFINITY).is_none() {
+                continue;
+            }
+            hits += 1;
+            // The true distance of the f32 ray's line from the f32 centre, in f64.
+            let (o, dir, c) = (
+                ray.origin.as_dvec3(),
+                ray.dir.as_dvec3(),
+                shape.center.as_dvec3(),
+            );
+            let distance = (c - o).cross(dir).length() / dir.length();
+            let m = (o.abs().max(c.abs()) + r).max_element();
+            if distance > Extent::of(&shape, m).reach {
+                outside += 1;
+            }
+        }
+        assert!(hits > 10_000, "{hits} hits");
+        assert_eq!(outside, 0, "of {hits} hits");
     }
 
     #[test]

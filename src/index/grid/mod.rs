@@ -13,6 +13,7 @@
 //! grid returns exactly the sphere and t that [`super::BruteForce`] returns.
 
 mod build;
+mod occupancy;
 mod packet;
 mod table;
 mod walk;
@@ -51,6 +52,8 @@ pub struct Level {
     table: BlockTable,
     /// Which blocks are occupied, 4×4×4 blocks at a time.
     regions: RegionTable,
+    /// Which groups of regions hold anything, densely.
+    occupancy: occupancy::Occupancy,
     /// Occupied cell i holds `ids[cell_start[i]..cell_start[i + 1]]`.
     cell_start: Vec<u32>,
     ids: Vec<u32>,
@@ -67,7 +70,10 @@ pub struct LevelInfo {
 
 impl Level {
     fn bytes(&self) -> usize {
-        self.table.bytes() + self.regions.bytes() + 4 * (self.cell_start.len() + self.ids.len())
+        self.table.bytes()
+            + self.regions.bytes()
+            + self.occupancy.bytes()
+            + 4 * (self.cell_start.len() + self.ids.len())
     }
 
     #[inline(always)]

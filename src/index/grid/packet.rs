@@ -100,11 +100,40 @@ impl<R: Real> Lanes<R> {
         let s = shape.inv_scale;
         // The origin is shared, so `f` and `c` are the same for every lane.
         let f = (self.origin - shape.center) * s;
-        let c = f.dot(f) - R::one();
+        let ff = f.dot(f);
+        let c = ff - R::one();
+        let mut found = [R::nan(); LANES];
+        if ff > R::NEAR_FRAME {
+            self.test_wide(shape, &mut found);
+        } else {
+            self.test_near(f, c, s, &mut found);
+        }
+        self.keep_nearest(&found, id);
+    }
+
+    /// The lanes of [`Self::test`] for a sphere whose frame the origin lies
+    /// beyond [`Real::NEAR_FRAME`] radii in: the one-ray test in f64, lane
+    /// by lane.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(never)]
+    fn test_wide(&self, shape: &UnitSphereFrame<R>, found: &mut [R; LANES]) {
+        for i in 0..LANES {
+            let dir = V3::<R>::new(self.dir[0][i], self.dir[1][i], self.dir[2][i]);
+            let ray = Ray::new(self.origin, dir);
+            found[i] = shape
+                .intersect_wide(&ray, self.t_min, self.cap[i])
+                .unwrap_or(R::nan());
+        }
+    }
+
+    /// The lanes of [`Self::test`] in `R`: `f` and `c` are the origin in the
+    /// sphere's frame and `f·f − 1`, `s` its inverse scale.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn test_near(&self, f: V3<R>, c: R, s: V3<R>, found: &mut [R; LANES]) {
         let (fx, fy, fz) = (f.x(), f.y(), f.z());
         let (sx, sy, sz) = (s.x(), s.y(), s.z());
         let one = R::one();
-        let mut found = [R::nan(); LANES];
         for i in 0..LANES {
             let (ex, ey, ez) = (
                 self.dir[0][i] * sx,
@@ -132,6 +161,12 @@ impl<R: Real> Lanes<R> {
             // A NaN or negative discriminant: the line misses.
             found[i] = if disc >= R::zero() { t } else { R::nan() };
         }
+    }
+
+    /// Keeps each lane's nearest (t, id), given the lanes' hits with `id`.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn keep_nearest(&mut self, found: &[R; LANES], id: u32) {
         for i in 0..LANES {
             let t = found[i];
             // NaN (no hit) fails both comparisons.

@@ -4,10 +4,11 @@
 //! crosses the next cell boundary. That t is always recomputed from the
 //! integer index, `(origin + i·h − o) / d`, never accumulated, so it cannot
 //! drift over a million cells. An axis the ray runs parallel to (d = ±0)
-//! never steps: its next crossing is +∞. Empty blocks are crossed in one
-//! step: the walk moves to the first cell of the next block along the ray.
+//! never steps: its next crossing is +∞. Empty space is crossed a group at
+//! a time: an empty group of regions, region (4×4×4 blocks) or block in one
+//! step, the walk moving to the first cell of the next group along the ray.
 
-use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT, BLOCK_SIDE};
+use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT};
 use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
 
@@ -31,6 +32,35 @@ impl Ray64 {
             inv: d.recip().to_array(),
             length,
         })
+    }
+}
+
+/// Cells per region side, as a power of two (a region is 4×4×4 blocks).
+const REGION_SHIFT: u32 = 2 * BLOCK_SHIFT;
+
+/// The last group looked up: a ray crosses several cells of a block, and
+/// several blocks of a region, one after another.
+struct Cached<V> {
+    key: BlockKey,
+    value: V,
+}
+
+impl<V: Copy + Default> Cached<V> {
+    fn new() -> Self {
+        Cached {
+            key: BlockKey::MAX,
+            value: V::default(),
+        }
+    }
+
+    /// The value for `key`, from `lookup` (absent: the default) unless it was the last one.
+    #[inline(always)]
+    fn get(&mut self, key: BlockKey, lookup: impl FnOnce(BlockKey) -> Option<V>) -> V {
+        if key != self.key {
+            self.key = key;
+            self.value = lookup(key).unwrap_or_default();
+        }
+        self.value
     }
 }
 
@@ -122,45 +152,78 @@ impl Level {
             c[a] = self.cell_at(ray, t0, a, 0, self.dims[a] - 1);
             t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
         }
-        let mut cached: Option<(BlockKey, Option<Block>)> = None;
+        if empty_space == EmptySpace::ProbeEveryCell {
+            return self.walk_probing(ray, c, t_next, step, limit, visit);
+        }
+        let mut region = Cached::<u64>::new();
+        let mut block = Cached::<Block>::new();
         loop {
-            let key = block_key(c.map(|v| v >> BLOCK_SHIFT));
-            let block = match cached {
-                Some((k, b)) if k == key && empty_space == EmptySpace::SkipBlocks => b,
-                _ => {
-                    let b = self.table.get(key);
-                    cached = Some((key, b));
-                    b
+            // Empty space at three scales: a clear bit of the occupancy
+            // bitmap, a region (4×4×4 blocks) with no occupied block and an
+            // empty block of an occupied region are each crossed in one
+            // step, the last read from the region's mask without probing
+            // the block table.
+            if !self.occupancy.holds(c) {
+                let shift = self.occupancy.shift;
+                if !self.leave_group(ray, &mut c, &mut t_next, step, limit, shift) {
+                    return;
                 }
+                continue;
+            }
+            let b = c.map(|v| v >> BLOCK_SHIFT);
+            let blocks = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
+                self.regions.get(k)
+            });
+            let skip = if blocks == 0 {
+                Some(REGION_SHIFT)
+            } else if blocks >> cell_bit(b) & 1 == 0 {
+                Some(BLOCK_SHIFT)
+            } else {
+                None
             };
-            match block {
-                None if empty_space == EmptySpace::SkipBlocks => {
-                    if !self.leave_block(ray, &mut c, &mut t_next, step, limit) {
-                        return;
-                    }
-                    continue;
+            if let Some(shift) = skip {
+                if !self.leave_group(ray, &mut c, &mut t_next, step, limit, shift) {
+                    return;
                 }
-                Some(b) if b.holds(cell_bit(c)) => {
-                    let wanted = visit(self.candidates(b.cell_index(cell_bit(c))));
-                    limit = limit.min(wanted);
-                }
-                _ => {}
+                continue;
             }
-            let a = first_axis(&t_next);
-            if t_next[a] > limit || t_next[a] == f64::INFINITY {
+            let cells = block.get(block_key(b), |k| self.table.get(k));
+            if cells.holds(cell_bit(c)) {
+                let wanted = visit(self.candidates(cells.cell_index(cell_bit(c))));
+                limit = limit.min(wanted);
+            }
+            if !self.step(ray, &mut c, &mut t_next, step, limit) {
                 return;
             }
-            c[a] += step[a];
-            if c[a] < 0 || c[a] >= self.dims[a] {
-                return;
-            }
-            t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
         }
     }
 
-    /// Moves from an empty block to the first cell the ray enters beyond it.
-    /// False when that lies beyond `limit` or outside the level.
-    fn leave_block(
+    /// [`Self::walk`] one cell at a time, probing the block table in each.
+    fn walk_probing(
+        &self,
+        ray: &Ray64,
+        mut c: [i64; 3],
+        mut t_next: [f64; 3],
+        step: [i64; 3],
+        mut limit: f64,
+        mut visit: impl FnMut(&[u32]) -> f64,
+    ) {
+        loop {
+            if let Some(b) = self.table.get(block_key(c.map(|v| v >> BLOCK_SHIFT))) {
+                if b.holds(cell_bit(c)) {
+                    limit = limit.min(visit(self.candidates(b.cell_index(cell_bit(c)))));
+                }
+            }
+            if !self.step(ray, &mut c, &mut t_next, step, limit) {
+                return;
+            }
+        }
+    }
+
+    /// Moves to the next cell along the ray; false when it starts beyond
+    /// `limit` or lies outside the level.
+    #[inline(always)]
+    fn step(
         &self,
         ray: &Ray64,
         c: &mut [i64; 3],
@@ -168,12 +231,37 @@ impl Level {
         step: [i64; 3],
         limit: f64,
     ) -> bool {
-        let block = c.map(|v| v >> BLOCK_SHIFT << BLOCK_SHIFT);
+        let a = first_axis(t_next);
+        if t_next[a] > limit || t_next[a] == f64::INFINITY {
+            return false;
+        }
+        c[a] += step[a];
+        if c[a] < 0 || c[a] >= self.dims[a] {
+            return false;
+        }
+        t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
+        true
+    }
+
+    /// Moves from an empty group of cells (a cube of side `1 << shift`
+    /// cells: a block or a region) to the first cell the ray enters beyond
+    /// it. False when that lies beyond `limit` or outside the level.
+    fn leave_group(
+        &self,
+        ray: &Ray64,
+        c: &mut [i64; 3],
+        t_next: &mut [f64; 3],
+        step: [i64; 3],
+        limit: f64,
+        shift: u32,
+    ) -> bool {
+        let side = 1i64 << shift;
+        let block = c.map(|v| v >> shift << shift);
         // The block's last cell along each axis's direction of travel.
         let mut exits = [0.0; 3];
         for a in 0..3 {
             let last = if step[a] > 0 {
-                block[a] + BLOCK_SIDE - 1
+                block[a] + side - 1
             } else {
                 block[a]
             };
@@ -187,12 +275,12 @@ impl Level {
         for k in 0..3 {
             c[k] = if k == a {
                 if step[k] > 0 {
-                    block[k] + BLOCK_SIDE
+                    block[k] + side
                 } else {
                     block[k] - 1
                 }
             } else if step[k] > 0 {
-                self.cell_at(ray, t_exit, k, c[k], block[k] + BLOCK_SIDE - 1)
+                self.cell_at(ray, t_exit, k, c[k], block[k] + side - 1)
             } else if step[k] < 0 {
                 self.cell_at(ray, t_exit, k, block[k], c[k])
             } else {
