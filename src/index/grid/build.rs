@@ -2,26 +2,39 @@
 //!
 //! # Which level a sphere goes to
 //! A sphere's reach is its bounding radius ρ (largest scale) plus a pad that
-//! covers the rounding of the hit test (below). Diameters `2·reach` fall into
-//! bands of a factor [`BAND`] = 4: band k holds diameters in (4^(k−1), 4^k].
-//! Each band that holds at least one sphere gets a cell side: the smallest
-//! power of two at least the band's largest diameter, doubled while the
-//! band's sphere centres still number at most [`MAX_CENTRES_PER_CELL`] per
-//! occupied cell (estimated by linear counting; the doublings are bisected,
-//! as that mean only grows with them). Bands whose sides come out
-//! equal share one level. So:
-//! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
-//! - in a dense band a cell is at most 2× the largest and 8× the smallest
-//!   diameter it holds; in a sparse band a cell holds about one or two
-//!   spheres, so a ray does not cross many empty cells between two spheres;
-//! - the lattice planes lie at multiples of a power of two (exact in binary),
-//!   and only levels that hold spheres exist.
+//! covers the rounding of the hit test (below). The levels come from the
+//! scene's own histogram of reaches ([`size_classes`]), in bins of an eighth
+//! of an octave:
+//! - from the largest reach down, a level takes every sphere within a factor
+//!   [`LEVEL_SPAN`] = 4 of its largest, so a narrow range of sizes is always
+//!   one level, wherever it falls on the number line;
+//! - a finer class with fewer than [`MERGE_FRACTION`] of the spheres of the
+//!   next coarser one joins it: a few small spheres in coarse cells cost
+//!   less than a walk through a grid of their own;
+//! - the coarsest classes, while together they hold at most [`SHORT_LIST`]
+//!   spheres (a floor of radius 1000 among spheres of 0.01, a planet), are
+//!   no grid at all: every ray tests them first, and their hits bound the
+//!   walk of the levels.
 //!
-//! A factor 4 keeps both the number of bands (three decades of radii give 5–6)
-//! and the number of spheres per cell low: a factor 2 doubles the bands, a
-//! factor 16 crowds the cells with small spheres. A level spans only the
-//! bounding box of its own spheres, and is coarsened when that box would need
-//! more than 2²¹ cells on a side.
+//! Each level gets a cell side: the smallest power of two at least its
+//! largest diameter, doubled while its sphere centres still number at most
+//! [`MAX_CENTRES_PER_CELL`] per occupied cell (estimated by linear counting;
+//! the doublings are bisected, as that mean only grows with them). Levels
+//! whose sides come out equal are merged. So:
+//! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
+//! - in a dense level a cell is at most 2× the largest and 8× the smallest
+//!   diameter it holds; in a sparse one a cell holds about one sphere, so a
+//!   ray does not cross many empty cells between two spheres;
+//! - the lattice planes lie at multiples of a power of two (exact in binary).
+//!
+//! A factor 4 keeps both the number of levels (three decades of radii give
+//! five) and the number of spheres per cell low: a factor 2 doubles the
+//! levels a ray walks, a factor 16 crowds the cells with small spheres. The
+//! mean of 1.2 centres per occupied cell (about 0.3 per cell) balances the
+//! cost of a cell step against that of a sphere test: coarser cells make a
+//! ray test the spheres of a wider tube around it. A level spans only the
+//! bounding box of its own spheres, and is coarsened when that box would
+//! need more than 2²¹ cells on a side.
 //!
 //! # Why the pad
 //! The grid must return what brute force returns, and brute force reports what
@@ -52,11 +65,19 @@ use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
 use glam::DVec3;
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use voracious_radix_sort::RadixSort;
 
 /// The ratio of the largest to the smallest reach a level holds.
-pub const BAND: f64 = 4.0;
+pub const LEVEL_SPAN: f64 = 4.0;
+/// Histogram bins per octave of reach.
+const BINS_PER_OCTAVE: f64 = 8.0;
+/// A finer size class with fewer than this fraction of the next coarser
+/// class's spheres joins that class.
+pub const MERGE_FRACTION: f64 = 1.0 / 8.0;
+/// Most spheres the coarsest classes may hold together to be tested by
+/// every ray instead of being walked.
+pub const SHORT_LIST: usize = 8;
 /// How many unit roundoffs of the hit test the pad and slack allow for.
 pub const ERROR_SAFETY: f64 = 64.0;
 /// Relative error of the f64 traversal itself, far below any `R`'s.
@@ -95,8 +116,9 @@ impl Extent {
         }
     }
 
-    fn band(&self) -> i32 {
-        ((2.0 * self.reach).log2() / BAND.log2()).ceil() as i32
+    /// The histogram bin of the reach.
+    fn bin(&self) -> i32 {
+        (self.reach.log2() * BINS_PER_OCTAVE).floor() as i32
     }
 }
 
@@ -167,6 +189,8 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
 pub struct Built {
     /// Coarsest first.
     pub levels: Vec<Level>,
+    /// The spheres every ray tests (positions in `order`).
+    pub short: Vec<u32>,
     /// The order the grid keeps its copies of the spheres in: the levels'
     /// candidate lists index it, and its entry i is a sphere id.
     pub order: Vec<u32>,
@@ -186,42 +210,45 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
         // Only finite scenes get an index; the parser guarantees this one.
         return Built {
             levels: Vec::new(),
+            short: Vec::new(),
             order: Vec::new(),
             bound: Vec::new(),
         };
     }
     let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
-    let band: Vec<i32> = extents.par_iter().map(Extent::band).collect();
-    let present = band
-        .par_iter()
-        .fold(BTreeSet::new, |mut set, &b| {
-            set.insert(b);
-            set
-        })
-        .reduce(BTreeSet::new, |mut a, b| {
-            a.extend(b);
-            a
-        });
-    let bands = present.into_iter().map(|b| {
-        (0..shapes.len() as u32)
+    let bins: Vec<i32> = extents.par_iter().map(Extent::bin).collect();
+    let classes = size_classes(&histogram(&bins));
+    let class_of = |bin: i32| classes.partition_point(|c| c.lowest_bin > bin);
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); classes.len()];
+    for (k, ids) in members.iter_mut().enumerate() {
+        *ids = (0..shapes.len() as u32)
             .into_par_iter()
-            .filter(|&id| band[id as usize] == b)
-            .collect::<Vec<u32>>()
-    });
-    // Bands whose chosen cells come out equal share one level: walking two
+            .filter(|&id| class_of(bins[id as usize]) == k)
+            .collect();
+    }
+    // The coarsest classes, while small together, are the short list.
+    let mut short_ids = Vec::new();
+    let mut first_level = 0;
+    while first_level < members.len() && short_ids.len() + members[first_level].len() <= SHORT_LIST
+    {
+        short_ids.append(&mut members[first_level]);
+        first_level += 1;
+    }
+    // Classes whose chosen cells come out equal share one level: walking two
     // identical lattices would cost twice for nothing.
     let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
-    for ids in bands {
+    for ids in members.into_iter().skip(first_level) {
         let cell = choose_cell(&extents, &ids);
         by_cell.entry(cell.to_bits()).or_default().extend(ids);
     }
-    let mut order = Vec::with_capacity(shapes.len());
+    let mut order: Vec<u32> = short_ids.clone();
+    let short = (0..order.len() as u32).collect();
     let mut rank = vec![u32::MAX; shapes.len()];
     let levels = by_cell
         .into_iter()
         .rev()
         .map(|(cell, mut ids)| {
-            // Bands that share a level arrive one after another, each in id order.
+            // Classes that share a level arrive one after another, each in id order.
             ids.par_sort_unstable();
             build_level(&extents, &ids, f64::from_bits(cell), &mut rank, &mut order)
         })
@@ -229,12 +256,74 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
     let bound = extents.par_iter().map(|e| e.reach + e.slack).collect();
     Built {
         levels,
+        short,
         order,
         bound,
     }
 }
 
-/// The cell side of a band: the smallest power of two at least its largest
+/// How many spheres fall in each histogram bin, largest bin first.
+fn histogram(bins: &[i32]) -> Vec<(i32, usize)> {
+    let counts = bins
+        .par_iter()
+        .fold(BTreeMap::new, |mut counts, &b| {
+            *counts.entry(b).or_insert(0usize) += 1;
+            counts
+        })
+        .reduce(BTreeMap::new, |mut a, b| {
+            for (bin, n) in b {
+                *a.entry(bin).or_insert(0) += n;
+            }
+            a
+        });
+    counts.into_iter().rev().collect()
+}
+
+/// A run of histogram bins that becomes one level (or the short list).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SizeClass {
+    /// The smallest bin it holds; it holds every bin from there up to the
+    /// next coarser class's lowest bin.
+    lowest_bin: i32,
+    spheres: usize,
+}
+
+/// The size classes of a histogram (largest bin first), coarsest first: see
+/// the module docs.
+fn size_classes(histogram: &[(i32, usize)]) -> Vec<SizeClass> {
+    let span = (LEVEL_SPAN.log2() * BINS_PER_OCTAVE) as i32;
+    let mut classes: Vec<SizeClass> = Vec::new();
+    let mut top = i32::MAX;
+    for &(bin, count) in histogram {
+        match classes.last_mut() {
+            Some(class) if bin > top - span => {
+                class.lowest_bin = bin;
+                class.spheres += count;
+            }
+            _ => {
+                top = bin;
+                classes.push(SizeClass {
+                    lowest_bin: bin,
+                    spheres: count,
+                });
+            }
+        }
+    }
+    // Small finer classes join the coarser class above them.
+    let mut merged: Vec<SizeClass> = Vec::new();
+    for class in classes {
+        match merged.last_mut() {
+            Some(coarser) if (class.spheres as f64) < MERGE_FRACTION * coarser.spheres as f64 => {
+                coarser.lowest_bin = class.lowest_bin;
+                coarser.spheres += class.spheres;
+            }
+            _ => merged.push(class),
+        }
+    }
+    merged
+}
+
+/// The cell side of a level: the smallest power of two at least its largest
 /// diameter, doubled while cells stay sparse.
 fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
     let reach = ids
@@ -242,16 +331,16 @@ fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
         .map(|&id| extents[id as usize].reach)
         .reduce(|| 0.0, f64::max);
     let finest = (2.0 * reach).log2().ceil().exp2();
-    // Sparse bands: coarser cells while a cell still holds few centres, so
+    // Sparse levels: coarser cells while a cell still holds few centres, so
     // that rays cross fewer empty cells on their way to a sphere. Doubling
     // the cells merges them eight to one, so the centres per occupied cell
     // only grow with the doublings: search for the most that stay sparse
-    // (a few passes over the band instead of one per doubling).
+    // (a few passes over the level instead of one per doubling).
     let sparse = |doublings: i32| {
         let cell = finest * f64::from(doublings).exp2();
         centres_per_occupied_cell(extents, ids, cell) <= MAX_CENTRES_PER_CELL
     };
-    // Galloping up from the finest cells first: a dense band, where most
+    // Galloping up from the finest cells first: a dense level, where most
     // spheres usually are, is settled by one pass.
     let (mut good, mut bad) = (0, MAX_COARSENING + 1);
     let mut probe = 1;
@@ -672,6 +761,81 @@ mod tests {
         }
         assert!(hits > 10_000, "{hits} hits");
         assert_eq!(outside, 0, "of {hits} hits");
+    }
+
+    fn reach_histogram(reaches: &[(f64, usize)]) -> Vec<(i32, usize)> {
+        let bins: Vec<i32> = reaches
+            .iter()
+            .flat_map(|&(reach, count)| {
+                let e = Extent {
+                    center: DVec3::ZERO,
+                    reach,
+                    slack: 0.0,
+                };
+                std::iter::repeat_n(e.bin(), count)
+            })
+            .collect();
+        histogram(&bins)
+    }
+
+    #[test]
+    fn a_narrow_range_of_sizes_is_one_class_wherever_it_falls() {
+        for centre in [0.03, 0.0625, 0.25, 1.0, 1000.0] {
+            // ±20% around a size, and around a power of four, in 40 steps.
+            let reaches: Vec<(f64, usize)> = (0..=40)
+                .map(|k| (centre * (0.8 + 0.01 * k as f64), 1000))
+                .collect();
+            let classes = size_classes(&reach_histogram(&reaches));
+            assert_eq!(classes.len(), 1, "around {centre}: {classes:?}");
+            assert_eq!(classes[0].spheres, 41_000);
+        }
+    }
+
+    #[test]
+    fn sizes_over_three_decades_make_a_few_classes_each_within_the_span() {
+        let reaches: Vec<(f64, usize)> = (0..=300)
+            .map(|k| (1e-3 * 10f64.powf(k as f64 / 100.0), 100))
+            .collect();
+        let classes = size_classes(&reach_histogram(&reaches));
+        assert!((5..=6).contains(&classes.len()), "{classes:?}");
+        // Each spans a factor 4 at most, but for the last, which the few
+        // spheres of the smallest bin join.
+        let span = (LEVEL_SPAN.log2() * BINS_PER_OCTAVE) as i32;
+        let mut top = 0;
+        for (k, class) in classes.iter().enumerate() {
+            let slack = if k + 1 == classes.len() { 2 } else { 0 };
+            assert!(top - class.lowest_bin < span + slack, "{classes:?}");
+            top = class.lowest_bin - 1;
+        }
+    }
+
+    #[test]
+    fn a_few_small_spheres_join_the_coarser_class() {
+        // 2% dust a hundred times smaller than the rest.
+        let classes = size_classes(&reach_histogram(&[(0.1, 9800), (0.001, 200)]));
+        assert_eq!(classes.len(), 1, "{classes:?}");
+        // But as many small as large ones get their own level.
+        let classes = size_classes(&reach_histogram(&[(0.1, 5000), (0.001, 5000)]));
+        assert_eq!(classes.len(), 2, "{classes:?}");
+    }
+
+    #[test]
+    fn a_huge_floor_is_the_short_list_and_leaves_the_small_spheres_alone() {
+        use glam::Vec3;
+        let mut shapes = vec![Ellipsoid::<f32>::new(
+            Vec3::new(0.0, -1001.0, -5.0),
+            Vec3::splat(1000.0),
+        )];
+        for i in 0..2000 {
+            let c = Vec3::new((i % 20) as f32, (i / 20 % 10) as f32, -((i / 200) as f32));
+            shapes.push(Ellipsoid::new(c * 0.1, Vec3::splat(0.01)));
+        }
+        let built = levels(&shapes);
+        assert_eq!(built.short.len(), 1);
+        assert_eq!(built.order[built.short[0] as usize], 0);
+        assert_eq!(built.levels.len(), 1);
+        // The floor's size did not widen the small spheres' cells.
+        assert!(built.levels[0].cell <= 0.125, "{}", built.levels[0].cell);
     }
 
     #[test]

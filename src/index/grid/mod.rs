@@ -97,6 +97,9 @@ pub struct VoxelHashGrid<R: Real> {
     /// The spheres in the order the levels' cells list them (see
     /// [`build`]): the candidates of one cell lie together in memory.
     spheres: Vec<Candidate<R>>,
+    /// The few largest spheres, which every ray tests before any level
+    /// (positions in `spheres`).
+    short: Vec<u32>,
     /// Coarsest first: big spheres bound the search of the small ones.
     levels: Vec<Level>,
     empty_space: EmptySpace,
@@ -127,6 +130,7 @@ impl<R: Real> VoxelHashGrid<R> {
     pub fn new(shapes: &[Ellipsoid<R>]) -> Self {
         let build::Built {
             levels,
+            short,
             order,
             bound,
         } = build::levels(shapes);
@@ -140,6 +144,7 @@ impl<R: Real> VoxelHashGrid<R> {
             .collect();
         VoxelHashGrid {
             spheres,
+            short,
             levels,
             empty_space: EmptySpace::default(),
         }
@@ -157,6 +162,12 @@ impl<R: Real> VoxelHashGrid<R> {
         self.levels.iter().map(Level::bytes).sum::<usize>()
             + self.spheres.capacity() * std::mem::size_of::<Candidate<R>>()
             + self.levels.capacity() * std::mem::size_of::<Level>()
+            + self.short.capacity() * 4
+    }
+
+    /// How many spheres every ray tests before walking any level.
+    pub fn short_list_len(&self) -> usize {
+        self.short.len()
     }
 
     pub fn levels(&self) -> Vec<LevelInfo> {
@@ -176,6 +187,24 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
     fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
         let mut best: Option<Hit<R>> = None;
+        let test = |i: u32, best: &mut Option<Hit<R>>| {
+            let sphere = &self.spheres[i as usize];
+            // Up to and including the best t, so that an equal t with a
+            // lower id still wins, as in brute force.
+            let cap = best.map_or(t_max, |b| b.t.next_up());
+            if let Some(t) = sphere.frame.intersect(ray, t_min, cap) {
+                let hit = Hit {
+                    t,
+                    sphere: sphere.id,
+                };
+                if best.is_none_or(|b| hit.is_before(&b)) {
+                    *best = Some(hit);
+                }
+            }
+        };
+        for &i in &self.short {
+            test(i, &mut best);
+        }
         let mut mailbox = Mailbox::new();
         for level in &self.levels {
             let slack = level.slack / wide.length;
@@ -187,21 +216,8 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
                 self.empty_space,
                 |ids| {
                     for &i in ids {
-                        if !mailbox.first_visit(i) {
-                            continue;
-                        }
-                        let sphere = &self.spheres[i as usize];
-                        // Up to and including the best t, so that an equal t
-                        // with a lower id still wins, as in brute force.
-                        let cap = best.map_or(t_max, |b| b.t.next_up());
-                        if let Some(t) = sphere.frame.intersect(ray, t_min, cap) {
-                            let hit = Hit {
-                                t,
-                                sphere: sphere.id,
-                            };
-                            if best.is_none_or(|b| hit.is_before(&b)) {
-                                best = Some(hit);
-                            }
+                        if mailbox.first_visit(i) {
+                            test(i, &mut best);
                         }
                     }
                     best.map_or(f64::INFINITY, |b| b.t.to_f64() + slack)
@@ -226,6 +242,15 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
         let Some(wide) = Ray64::new(ray) else {
             return false;
         };
+        let blocks = |i: u32| {
+            self.spheres[i as usize]
+                .frame
+                .intersect(ray, R::zero(), t_max)
+                .is_some()
+        };
+        if self.short.iter().any(|&i| blocks(i)) {
+            return true;
+        }
         let mut mailbox = Mailbox::new();
         let mut found = false;
         for level in &self.levels {
@@ -236,13 +261,7 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
                 t_max.to_f64() + slack,
                 self.empty_space,
                 |ids| {
-                    found = ids.iter().any(|&i| {
-                        mailbox.first_visit(i)
-                            && self.spheres[i as usize]
-                                .frame
-                                .intersect(ray, R::zero(), t_max)
-                                .is_some()
-                    });
+                    found = ids.iter().any(|&i| mailbox.first_visit(i) && blocks(i));
                     if found {
                         f64::NEG_INFINITY
                     } else {

@@ -857,6 +857,19 @@ impl<R: Real> VoxelHashGrid<R> {
         let mut mailbox = PacketMailbox([u32::MAX; MAILBOX]);
         let origin = DVec3::from_array(packet.rays[0].o);
         let cones = Cones::new(packet, t_min.to_f64());
+        let all = (1 << GROUPS) - 1;
+        for &i in &self.short {
+            let sphere = &self.spheres[i as usize];
+            let center = sphere.frame.center.to_dvec3();
+            for g in set_bits(u64::from(cones.groups_hit(
+                origin,
+                center,
+                sphere.bound.to_f64(),
+                all,
+            ))) {
+                groups[g].test(&sphere.frame, sphere.id);
+            }
+        }
         for level in &self.levels {
             level.walk_packet(
                 packet,
