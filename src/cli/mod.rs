@@ -4,7 +4,9 @@
 mod bench;
 mod gen;
 mod load;
+mod output_path;
 mod render;
+mod scene_input;
 mod serve;
 
 use clap::{Parser, Subcommand};

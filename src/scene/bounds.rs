@@ -159,8 +159,11 @@ pub(super) fn check_axes(
 ) -> Result<(), (usize, SceneErrorKind)> {
     let by_size =
         |a: &&(f64, &str, usize), b: &&(f64, &str, usize)| a.0.abs().total_cmp(&b.0.abs());
-    let (Some(thin), Some(wide)) = (axes.iter().min_by(by_size), axes.iter().max_by(by_size))
-    else {
+    // The first of equal axes: `max_by` keeps the last, so it runs backwards.
+    let (Some(thin), Some(wide)) = (
+        axes.iter().min_by(by_size),
+        axes.iter().rev().max_by(by_size),
+    ) else {
         return Ok(());
     };
     if wide.0.abs() <= thin.0.abs() * limits::MAX_AXIS_RATIO {
