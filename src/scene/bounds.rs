@@ -61,42 +61,46 @@ pub(super) struct Extremes {
     widest: Option<Located>,
 }
 
-/// Whether a new magnitude displaces the kept one (never on a tie, so that
-/// the first of equal values is kept).
-type Better = fn(f64, f64) -> bool;
-const LARGER: Better = |new, old| new > old;
-const SMALLER: Better = |new, old| new < old;
-
-/// Puts the value `at` builds in `slot` if its magnitude is `better`.
-fn keep(slot: &mut Option<Located>, magnitude: f64, at: impl FnOnce() -> Located, better: Better) {
-    if slot.is_none_or(|old| better(magnitude, old.magnitude())) {
+/// Puts the value `at` builds in `slot` if its magnitude is larger (or, with
+/// `smaller`, smaller) than the kept one's; never on a tie, so that the
+/// first of equal values is kept.
+#[inline(always)]
+fn keep(slot: &mut Option<Located>, magnitude: f64, at: impl FnOnce() -> Located, smaller: bool) {
+    let better = match slot {
+        None => true,
+        Some(old) if smaller => magnitude < old.magnitude(),
+        Some(old) => magnitude > old.magnitude(),
+    };
+    if better {
         *slot = Some(at());
     }
 }
 
 impl Extremes {
     /// Counts a coordinate or camera value; `at` says where it was given.
+    #[inline]
     pub fn length(&mut self, value: f64, at: impl FnOnce() -> Located) {
-        keep(&mut self.longest, value.abs(), at, LARGER);
+        keep(&mut self.longest, value.abs(), at, false);
     }
 
     /// Counts a scale, which is a length too.
+    #[inline]
     pub fn scale(&mut self, value: f64, at: impl Fn() -> Located) {
         let magnitude = value.abs();
-        keep(&mut self.longest, magnitude, &at, LARGER);
-        keep(&mut self.thinnest, magnitude, &at, SMALLER);
-        keep(&mut self.widest, magnitude, &at, LARGER);
+        keep(&mut self.longest, magnitude, &at, false);
+        keep(&mut self.thinnest, magnitude, &at, true);
+        keep(&mut self.widest, magnitude, &at, false);
     }
 
     /// Adds the extremes of text that follows this one's.
     pub fn merge(&mut self, later: &Extremes) {
-        for (slot, new, better) in [
-            (&mut self.longest, later.longest, LARGER),
-            (&mut self.thinnest, later.thinnest, SMALLER),
-            (&mut self.widest, later.widest, LARGER),
+        for (slot, new, smaller) in [
+            (&mut self.longest, later.longest, false),
+            (&mut self.thinnest, later.thinnest, true),
+            (&mut self.widest, later.widest, false),
         ] {
             if let Some(new) = new {
-                keep(slot, new.magnitude(), || new, better);
+                keep(slot, new.magnitude(), || new, smaller);
             }
         }
     }
