@@ -1,6 +1,7 @@
 //! Where `voxtrace render` writes its image, and what it refuses to write
 //! over or to.
 
+use super::refusal::Refusal;
 use super::CliError;
 use crate::output::Format;
 use crate::scene::Scene;
@@ -77,10 +78,7 @@ fn stem_name(scene_path: &Path) -> PathBuf {
 /// A PNG on a terminal is noise that can upset it: `-o -` wants a pipe or a file.
 pub fn refuse_terminal(destination: &Destination) -> Result<(), CliError> {
     if *destination == Destination::Stdout && std::io::stdout().is_terminal() {
-        return Err(CliError::Usage(
-            "standard output is a terminal: redirect it (`-o - > image.png`) or name a file with -o"
-                .into(),
-        ));
+        return Err(CliError::Refused(Refusal::Terminal));
     }
     Ok(())
 }
@@ -92,11 +90,10 @@ pub fn refuse_overwriting(destination: &Destination, scene_path: &Path) -> Resul
         return Ok(());
     };
     if same_file(output, scene_path) {
-        return Err(CliError::Usage(format!(
-            "{} is the scene file {} itself: refusing to write the image over it",
-            output.display(),
-            scene_path.display()
-        )));
+        return Err(CliError::Refused(Refusal::OverwritesScene {
+            output: output.clone(),
+            scene: scene_path.to_owned(),
+        }));
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 //! input (a pipe, a device) is refused once it goes past it; the text is
 //! parsed as it streams in (see `scene::read`).
 
+use super::refusal::Refusal;
 use super::CliError;
 use crate::scene::{self, ReadError, Scene};
 use std::fs::File;
@@ -28,7 +29,8 @@ pub fn read_scene(path: &Path, max_bytes: u64) -> Result<Scene, CliError> {
 }
 
 fn too_large(display: &str, limit: u64) -> CliError {
-    CliError::Usage(format!(
-        "{display}: the scene is larger than {limit} bytes; --max-scene-bytes raises the limit"
-    ))
+    CliError::Refused(Refusal::TooLarge {
+        scene: display.to_owned(),
+        limit,
+    })
 }
