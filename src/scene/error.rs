@@ -178,7 +178,7 @@ impl fmt::Display for SceneErrorKind {
             ),
             LengthRatio { small, large } => write!(
                 f,
-                "{} {} (line {}) and {} {} (line {}) are more than a factor {:e} apart, so the renderer's f32 hit test, which squares their ratio, would overflow",
+                "{} {} (line {}) and {} {} (line {}) are more than a factor {:e} apart: the renderer's f32 hit test squares their ratio, which leaves f32's range there",
                 small.field,
                 number(small.value),
                 small.line,

@@ -44,7 +44,7 @@ impl From<SceneError> for ReadError {
 }
 
 /// Reads and parses the scene text of `source`, at most `max_bytes` of it.
-/// The scene, or the error, is the one [`super::parse`] gives on the whole
+/// The scene, or the error, is the one `scene::parse` gives on the whole
 /// text, except that a text past `max_bytes` is [`ReadError::TooLarge`].
 pub fn read(mut source: impl Read, max_bytes: u64) -> Result<Scene, ReadError> {
     let mut parser = Parser::new();
