@@ -7,6 +7,33 @@ pub const MAX_SPHERES: usize = 20_000_000;
 pub const MAX_LIGHTS: usize = 1_000;
 /// Largest image side in pixels, so a typo in RES cannot ask for terabytes.
 pub const MAX_RESOLUTION: u32 = 16_384;
+/// Longest line of scene text in bytes. A `voxtrace gen` line is about 110
+/// bytes; the limit only has to stop a file without line ends from being
+/// held whole before its first line is even looked at.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+/// How far into a scene text control bytes mark it as binary data (a NUL, an
+/// escape: anything below 0x20 but TAB, LF and CR, or DEL). Further in,
+/// such bytes still fail as malformed tokens; only the start is worth a
+/// clearer message.
+pub const BINARY_SNIFF_BYTES: usize = 8 * 1024;
+/// Largest scene file `voxtrace render` reads unless told otherwise
+/// (`--max-scene-bytes`): 1.5 GiB. 10^7 spheres as `voxtrace gen` writes
+/// them take 1.01 GB (uniform) to 1.12 GB (mixed sizes, all ellipsoids and
+/// glass), so they fit with 40 % to spare.
+pub const DEFAULT_MAX_SCENE_BYTES: u64 = 3 << 29;
+
+// ---- What the f32 fast path can represent; `scene::bounds` derives each. ----
+
+/// Largest magnitude of any length: a coordinate, a scale, a camera value.
+pub const MAX_LENGTH: f64 = 1e18;
+/// Smallest magnitude of a scale.
+pub const MIN_SCALE: f64 = 1e-18;
+/// Largest ratio of any length of a scene to its thinnest scale, and of its
+/// widest scale to NEAR.
+pub const MAX_LENGTH_RATIO: f64 = 1e18;
+/// Largest ratio of an ellipsoid's longest axis to its shortest.
+pub const MAX_AXIS_RATIO: f64 = 1e12;
+
 /// Default recursion depth of reflection/refraction in the classic model (the course's limit).
 pub const DEFAULT_CLASSIC_DEPTH: u32 = 3;
 /// Safety cap on recursion in the browser model, whose own rule (remaining

@@ -252,6 +252,98 @@ fn cases() -> Vec<Case> {
             |k| matches!(k, K::ExpectedNumber { field: "<r>", .. }),
         ),
         case(
+            "a centre beyond f32's range",
+            with_head("SPHERE far 1e39 0 -10 1 1 1 0.5 0 0 1 1 0.9 0 50"),
+            7,
+            12,
+            |k| matches!(k, K::TooLong { field: "<pos x>", value } if *value == 1e39),
+        ),
+        case(
+            "a light whose distance squared overflows f32",
+            with_head("LIGHT sun 1e20 1e20 0 1 1 1"),
+            7,
+            11,
+            |k| matches!(k, K::TooLong { field: "<pos x>", .. }),
+        ),
+        case(
+            "a scale whose inverse squared underflows",
+            with_head("SPHERE wall 0 0 -10 1e19 1e19 1e19 0.5 0 0 1 1 0.9 0 50"),
+            7,
+            21,
+            |k| matches!(k, K::TooLong { field: "<scl x>", .. }),
+        ),
+        case(
+            "a scale whose inverse squared overflows",
+            with_head("SPHERE dust 0 0 -1e-18 1e-19 1e-19 1e-19 0.5 0 0 1 1 0.9 0 50"),
+            7,
+            24,
+            |k| matches!(k, K::TooThin { field: "<scl x>", .. }),
+        ),
+        case(
+            "an image plane beyond f32's range",
+            "NEAR 1\nLEFT -1e19\n",
+            2,
+            6,
+            |k| matches!(k, K::TooLong { field: "<l>", .. }),
+        ),
+        case(
+            "an ellipsoid too flat for f32",
+            with_head("SPHERE disc 0 0 -10 2 2e-13 2 0.5 0 0 1 1 0.9 0 50"),
+            7,
+            23,
+            |k| {
+                matches!(
+                    k,
+                    K::AxisRatio {
+                        thin_field: "<scl y>",
+                        wide_field: "<scl x>",
+                        ..
+                    }
+                )
+            },
+        ),
+        case(
+            "a far light and a small sphere, the light last",
+            with_head(&format!("{SPHERE}\nSPHERE dot 0 0 -5 0.01 0.01 0.01 1 1 1 1 1 0 0 1\nLIGHT sun 0 1e17 0 1 1 1")),
+            9,
+            13,
+            |k| {
+                matches!(
+                    k,
+                    K::LengthRatio { small, large }
+                        if (small.field, small.line, large.field, large.line) == ("<scl x>", 8, "<pos y>", 9)
+                )
+            },
+        ),
+        case(
+            "a small sphere given after a far one",
+            with_head("SPHERE far 0 0 -1e17 1e16 1e16 1e16 1 1 1 1 1 0 0 1\nSPHERE dot 0 0 -5 0.01 0.01 0.01 1 1 1 1 1 0 0 1"),
+            8,
+            19,
+            |k| matches!(k, K::LengthRatio { small, large } if small.value == 0.01 && large.value == -1e17),
+        ),
+        case(
+            "a sphere too wide for NEAR, NEAR last",
+            "LEFT -1e-10\nRIGHT 1e-10\nBOTTOM -1e-10\nTOP 1e-10\nRES 4 4\nSPHERE room 0 0 0 1e9 1e9 1e9 1 1 1 1 1 0 0 1\nNEAR 1e-10\n",
+            7,
+            6,
+            |k| matches!(k, K::LengthRatio { small, large } if small.field == "NEAR" && large.field == "<scl x>"),
+        ),
+        case(
+            "a NUL byte near the start",
+            format!("{HEAD}# x\0y\n"),
+            7,
+            4,
+            |k| matches!(k, K::Binary { byte: 0 }),
+        ),
+        case(
+            "a line past the limit",
+            format!("{HEAD}# {}\n", "x".repeat(voxtrace::limits::MAX_LINE_BYTES)),
+            7,
+            voxtrace::limits::MAX_LINE_BYTES + 1,
+            |k| matches!(k, K::LineTooLong),
+        ),
+        case(
             "column counts characters",
             with_head("LIGHT lümière 0 0 0 1 1 é"),
             7,

@@ -4,7 +4,10 @@
 mod bench;
 mod gen;
 mod load;
+mod output_path;
+mod refusal;
 mod render;
+mod scene_input;
 mod serve;
 
 use clap::{Parser, Subcommand};
@@ -48,6 +51,8 @@ pub enum CliError {
     },
     /// The arguments make no sense together (exit code 2).
     Usage(String),
+    /// The arguments parse, but what they ask is refused (exit code 2).
+    Refused(refusal::Refusal),
     /// Anything else: files, rendering, encoding (exit code 1).
     Failed(String),
 }
@@ -55,7 +60,7 @@ pub enum CliError {
 impl CliError {
     fn exit_code(&self) -> ExitCode {
         match self {
-            CliError::Scene { .. } | CliError::Usage(_) => ExitCode::from(2),
+            CliError::Scene { .. } | CliError::Usage(_) | CliError::Refused(_) => ExitCode::from(2),
             CliError::Failed(_) => ExitCode::from(1),
         }
     }
@@ -66,12 +71,13 @@ impl fmt::Display for CliError {
         match self {
             CliError::Scene { path, error } => write!(f, "{path}: {error}"),
             CliError::Usage(why) | CliError::Failed(why) => write!(f, "{why}"),
+            CliError::Refused(refusal) => write!(f, "{refusal}"),
         }
     }
 }
 
 /// Runs the command line and returns the process's exit code: 0 on success,
-/// 2 for a scene or usage error, 1 for any other failure.
+/// 2 for a scene or usage error or a refusal, 1 for any other failure.
 pub fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,

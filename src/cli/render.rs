@@ -1,9 +1,11 @@
 //! `voxtrace render`.
 
+use super::output_path::{refuse_overwriting, refuse_terminal, Destination};
+use super::scene_input::read_scene;
 use super::CliError;
+use crate::limits;
 use crate::output::Format;
 use crate::render::{render_scene, IndexKind, RenderOptions, Rendered, SpecularModel};
-use crate::scene::{self, Scene};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -13,10 +15,15 @@ use std::time::{Duration, Instant};
 pub struct RenderArgs {
     /// The scene file (either dialect).
     scene: PathBuf,
-    /// Output file; `.png` writes PNG, anything else binary PPM, `-` PNG to stdout.
-    /// Default: the scene's OUTPUT name (or `<scene>.ppm`) in the current directory.
+    /// Output file; `.png` writes PNG, anything else binary PPM, `-` PNG to
+    /// stdout (not to a terminal). Default: the scene's OUTPUT name, reduced
+    /// to a plain file name ending in `.ppm` or `.png`, or `<scene>.ppm`, in
+    /// the current directory. The scene file itself is never written over.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Largest scene file to read, in bytes.
+    #[arg(long, value_name = "BYTES", default_value_t = limits::DEFAULT_MAX_SCENE_BYTES)]
+    max_scene_bytes: u64,
     /// Samples per pixel (1 = the pixel's corner, as the course did; more = stratified, jittered).
     #[arg(long, default_value_t = 1)]
     spp: u32,
@@ -41,15 +48,15 @@ pub struct RenderArgs {
 }
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {
-    let display = args.scene.display().to_string();
+    if args.output.as_deref() == Some(Path::new("-")) {
+        refuse_terminal(&Destination::Stdout)?;
+    }
+    let pool = super::thread_pool(args.threads)?;
     let started = Instant::now();
-    let text = std::fs::read(&args.scene)
-        .map_err(|e| CliError::Failed(format!("cannot read {display}: {e}")))?;
-    let scene = scene::parse(&text).map_err(|error| CliError::Scene {
-        path: display.clone(),
-        error,
-    })?;
+    let scene = pool.install(|| read_scene(&args.scene, args.max_scene_bytes))?;
     let parse_time = started.elapsed();
+    let destination = Destination::choose(args.output.as_deref(), &scene, &args.scene);
+    refuse_overwriting(&destination, &args.scene)?;
     let options = RenderOptions {
         spp: args.spp,
         depth: args.depth,
@@ -58,56 +65,35 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         index: args.index,
         deadline: None,
     };
-    let pool = super::thread_pool(args.threads)?;
     let progress = RowProgress::new(scene.camera.height);
     let rendered = pool
         .install(|| render_scene(&scene, &options, &|rows| progress.update(rows)))
         .map_err(|e| CliError::Usage(e.to_string()))?;
     progress.finish();
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| default_output(&scene, &args.scene));
-    write_image(&rendered, &output)?;
+    write_image(&rendered, &destination)?;
     if args.stats {
         print_stats(&rendered, parse_time, pool.current_num_threads());
     }
     Ok(())
 }
 
-/// The scene's OUTPUT name (its file name only: a scene never picks the
-/// directory), else the scene file's stem with `.ppm`.
-fn default_output(scene: &Scene, scene_path: &Path) -> PathBuf {
-    let named = scene
-        .output
-        .as_deref()
-        .and_then(|name| Path::new(name).file_name());
-    match named {
-        Some(name) => PathBuf::from(name),
-        None => {
-            let stem = scene_path.file_stem().unwrap_or_else(|| "render".as_ref());
-            PathBuf::from(stem).with_extension("ppm")
-        }
-    }
-}
-
-fn write_image(rendered: &Rendered, output: &Path) -> Result<(), CliError> {
-    let to_stdout = output == Path::new("-");
-    let format = if to_stdout {
-        Format::Png
-    } else {
-        Format::from_path(output)
+fn write_image(rendered: &Rendered, destination: &Destination) -> Result<(), CliError> {
+    let format = match destination {
+        Destination::Stdout => Format::Png,
+        Destination::File(path) => Format::from_path(path),
     };
     let bytes = rendered
         .image
         .encode(format)
         .map_err(|e| CliError::Failed(e.to_string()))?;
-    let result = if to_stdout {
-        std::io::stdout().lock().write_all(&bytes)
-    } else {
-        std::fs::write(output, &bytes)
+    let (result, name) = match destination {
+        Destination::Stdout => (
+            std::io::stdout().lock().write_all(&bytes),
+            "standard output".into(),
+        ),
+        Destination::File(path) => (std::fs::write(path, &bytes), path.display().to_string()),
     };
-    result.map_err(|e| CliError::Failed(format!("cannot write {}: {e}", output.display())))
+    result.map_err(|e| CliError::Failed(format!("cannot write {name}: {e}")))
 }
 
 fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {

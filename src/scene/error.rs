@@ -1,3 +1,4 @@
+use crate::limits;
 use std::fmt;
 
 /// A scene that cannot be rendered, with where the problem is.
@@ -69,6 +70,54 @@ pub enum SceneErrorKind {
         what: &'static str,
         limit: usize,
     },
+    /// A length (coordinate, scale or camera value) beyond
+    /// [`limits::MAX_LENGTH`] in magnitude: see `scene::bounds`.
+    TooLong {
+        field: &'static str,
+        value: f64,
+    },
+    /// A scale below [`limits::MIN_SCALE`] in magnitude.
+    TooThin {
+        field: &'static str,
+        value: f64,
+    },
+    /// An ellipsoid whose axes differ by more than [`limits::MAX_AXIS_RATIO`].
+    AxisRatio {
+        thin_field: &'static str,
+        thin: f64,
+        wide_field: &'static str,
+        wide: f64,
+    },
+    /// Two lengths of the scene more than [`limits::MAX_LENGTH_RATIO`] apart.
+    LengthRatio {
+        small: Length,
+        large: Length,
+    },
+    /// A line longer than [`limits::MAX_LINE_BYTES`].
+    LineTooLong,
+    /// A control byte near the start of the text: not a scene but binary data.
+    Binary {
+        byte: u8,
+    },
+}
+
+/// A length of the scene and where it was given, for [`SceneErrorKind::LengthRatio`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Length {
+    pub field: &'static str,
+    pub value: f64,
+    pub line: usize,
+}
+
+/// Plain decimals where they are short, scientific notation where they are
+/// not (`1e39` rather than forty digits).
+fn number(value: f64) -> String {
+    let magnitude = value.abs();
+    if magnitude == 0.0 || (1e-4..1e16).contains(&magnitude) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
+    }
 }
 
 impl fmt::Display for SceneError {
@@ -108,6 +157,41 @@ impl fmt::Display for SceneErrorKind {
             ),
             BadOutputName => write!(f, "OUTPUT needs a file name in UTF-8"),
             TooMany { what, limit } => write!(f, "more than {limit} {what}"),
+            TooLong { field, value } => write!(
+                f,
+                "{field} is {}, beyond ±{:e}: the renderer computes in f32, where squared distances that long overflow",
+                number(*value),
+                limits::MAX_LENGTH
+            ),
+            TooThin { field, value } => write!(
+                f,
+                "{field} is {}, below {:e} in magnitude: the renderer computes in f32, where the inverse of so thin a scale, squared, overflows",
+                number(*value),
+                limits::MIN_SCALE
+            ),
+            AxisRatio { thin_field, thin, wide_field, wide } => write!(
+                f,
+                "{thin_field} ({}) is more than {:e} times smaller than {wide_field} ({}): the renderer's f32 hit test keeps no precision across so flat an ellipsoid",
+                number(*thin),
+                limits::MAX_AXIS_RATIO,
+                number(*wide)
+            ),
+            LengthRatio { small, large } => write!(
+                f,
+                "{} {} (line {}) and {} {} (line {}) are more than a factor {:e} apart: the renderer's f32 hit test squares their ratio, which leaves f32's range there",
+                small.field,
+                number(small.value),
+                small.line,
+                large.field,
+                number(large.value),
+                large.line,
+                limits::MAX_LENGTH_RATIO
+            ),
+            LineTooLong => write!(f, "the line is longer than {} bytes", limits::MAX_LINE_BYTES),
+            Binary { byte } => write!(
+                f,
+                "byte 0x{byte:02x} is a control character: this is binary data, not scene text"
+            ),
         }
     }
 }

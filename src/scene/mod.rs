@@ -1,14 +1,20 @@
 //! The scene: its text format (two dialects), its model, and validation.
 //!
 //! `parse` turns text into a [`Scene`] or a [`SceneError`] that names the line
-//! and column; `write` turns a scene back into classic text.
+//! and column, refusing what the renderer cannot represent (`bounds`);
+//! `read` does the same from a stream, within size limits; `write` turns a
+//! scene back into classic text.
 
+mod bounds;
 mod error;
+mod lines;
 mod parse;
+mod read;
 mod write;
 
-pub use error::{SceneError, SceneErrorKind};
+pub use error::{Length, SceneError, SceneErrorKind};
 pub use parse::parse;
+pub use read::{read, ReadError};
 pub use write::{write_light, write_scene, write_sphere};
 
 use glam::DVec3;

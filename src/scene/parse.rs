@@ -1,103 +1,133 @@
 //! The scene text parser: one pure function per line (`parse_line`), folded
 //! into a [`Scene`] by [`SceneBuilder`], which checks what spans lines
-//! (duplicates, required directives, extents, dialect consistency).
+//! (duplicates, required directives, extents, dialect consistency, and the
+//! scene-wide bounds of `scene::bounds`).
 
+use super::bounds::{self, Extremes, Located};
+use super::error::Length;
+use super::lines::{check_line, column_of, split_chunks, split_lines};
 use super::{Camera, Dialect, Light, Material, Scene, SceneError, SceneErrorKind, Sphere};
 use crate::limits;
 use glam::DVec3;
 use rayon::prelude::*;
 
 /// Parses a scene in either dialect. Never panics, whatever the bytes.
+pub fn parse(text: impl AsRef<[u8]>) -> Result<Scene, SceneError> {
+    let mut parser = Parser::new();
+    parser.feed(text.as_ref())?;
+    parser.finish()
+}
+
+/// A scene parsed piece by piece as its text arrives (see `scene::read`),
+/// with the same result as [`parse`] on the whole text.
 ///
-/// Large texts are cut at line ends into chunks whose lines are parsed in
+/// Each piece is cut at line ends into chunks whose lines are parsed in
 /// parallel (each line on its own, by [`parse_line`]); the directives are then
 /// folded in file order by one [`SceneBuilder`], so the first error in the
 /// file is the one reported, with its exact line and column, as if parsed
 /// line by line.
-pub fn parse(text: impl AsRef<[u8]>) -> Result<Scene, SceneError> {
-    let text = text.as_ref();
-    let chunks = split_chunks(text);
-    // Lines before each chunk, so every chunk knows its first line's number.
-    let line_counts: Vec<usize> = chunks
-        .par_iter()
-        .map(|chunk| chunk.iter().filter(|&&b| b == b'\n').count())
-        .collect();
-    let first_lines: Vec<usize> = line_counts
-        .iter()
-        .scan(1, |next, &count| {
-            let first = *next;
-            *next += count;
-            Some(first)
-        })
-        .collect();
-    let parsed: Vec<ParsedChunk> = chunks
-        .par_iter()
-        .zip(&first_lines)
-        .map(|(chunk, &first)| parse_chunk(chunk, first))
-        .collect();
-    let mut builder = SceneBuilder::default();
-    let mut line_count = 0;
-    for ((chunk, text), (&first, &newlines)) in parsed
-        .into_iter()
-        .zip(&chunks)
-        .zip(first_lines.iter().zip(&line_counts))
-    {
-        builder.reserve(chunk.spheres);
-        for (line, directive) in chunk.directives {
-            builder.apply(line, directive)?;
-        }
-        if let Some(error) = chunk.error {
-            let line = split_lines(text)
-                .nth(error.line - first)
-                .unwrap_or_default();
-            return Err(builder.explain(error.line, line, error));
-        }
-        // A last line without a newline still counts.
-        let unterminated = usize::from(!text.is_empty() && !text.ends_with(b"\n"));
-        line_count = first + newlines + unterminated - 1;
-    }
-    builder.finish(line_count.max(1))
+pub(super) struct Parser {
+    builder: SceneBuilder,
+    /// The number of the next line, and how far into the text it starts.
+    next_line: usize,
+    offset: usize,
+    /// The lines so far, a last one without a newline included.
+    lines: usize,
 }
 
-/// Bytes per chunk of parallel parsing; smaller texts parse in one chunk.
-const CHUNK_BYTES: usize = 1 << 20;
-
-/// Cuts `text` into chunks that end just after a newline (the last chunk
-/// ends where the text does).
-fn split_chunks(text: &[u8]) -> Vec<&[u8]> {
-    let mut chunks = Vec::with_capacity(text.len() / CHUNK_BYTES + 1);
-    let mut rest = text;
-    while rest.len() > CHUNK_BYTES {
-        match rest[CHUNK_BYTES..].iter().position(|&b| b == b'\n') {
-            Some(i) => {
-                let (head, tail) = rest.split_at(CHUNK_BYTES + i + 1);
-                chunks.push(head);
-                rest = tail;
-            }
-            None => break,
+impl Parser {
+    pub fn new() -> Self {
+        Parser {
+            builder: SceneBuilder::default(),
+            next_line: 1,
+            offset: 0,
+            lines: 0,
         }
     }
-    chunks.push(rest);
-    chunks
+
+    /// Parses `text`, the text that follows what was fed before. Every piece
+    /// but the last must end with a newline.
+    pub fn feed(&mut self, text: &[u8]) -> Result<(), SceneError> {
+        let chunks = split_chunks(text);
+        // Lines before each chunk, so every chunk knows its first line's number.
+        let line_counts: Vec<usize> = chunks
+            .par_iter()
+            .map(|chunk| chunk.iter().filter(|&&b| b == b'\n').count())
+            .collect();
+        let starts: Vec<(usize, usize)> = chunks
+            .iter()
+            .zip(&line_counts)
+            .scan((self.next_line, self.offset), |next, (chunk, &count)| {
+                let first = *next;
+                *next = (next.0 + count, next.1 + chunk.len());
+                Some(first)
+            })
+            .collect();
+        let parsed: Vec<ParsedChunk> = chunks
+            .par_iter()
+            .zip(&starts)
+            .map(|(chunk, &(first, offset))| parse_chunk(chunk, first, offset))
+            .collect();
+        for ((chunk, text), (&(first, _), &newlines)) in parsed
+            .into_iter()
+            .zip(&chunks)
+            .zip(starts.iter().zip(&line_counts))
+        {
+            self.builder.reserve(chunk.spheres);
+            for (line, directive) in chunk.directives {
+                self.builder.apply(line, directive)?;
+            }
+            if let Some(error) = chunk.error {
+                let line = split_lines(text)
+                    .nth(error.line - first)
+                    .unwrap_or_default();
+                return Err(self.builder.explain(error.line, line, error));
+            }
+            self.builder.extremes.merge(&chunk.extremes);
+            // A last line without a newline still counts.
+            let unterminated = usize::from(!text.is_empty() && !text.ends_with(b"\n"));
+            self.lines = first + newlines + unterminated - 1;
+            self.next_line = first + newlines;
+        }
+        self.offset += text.len();
+        Ok(())
+    }
+
+    /// Checks the start of the next line, whose end has not come yet (see
+    /// [`check_line`]): a text that never ends its line fails here.
+    pub fn check_unfinished(&self, start: &[u8]) -> Result<(), SceneError> {
+        check_line(self.next_line, self.offset, start)
+    }
+
+    pub fn finish(self) -> Result<Scene, SceneError> {
+        self.builder.finish(self.lines.max(1))
+    }
 }
 
 /// The directives of one chunk up to its first error.
 struct ParsedChunk {
     directives: Vec<(usize, Directive)>,
     spheres: usize,
+    extremes: Extremes,
     error: Option<SceneError>,
 }
 
-/// Parses the lines of a chunk whose first line is number `first`, stopping at the first error.
-fn parse_chunk(chunk: &[u8], first: usize) -> ParsedChunk {
+/// Parses the lines of a chunk whose first line is number `first` and
+/// starts `offset` bytes into the text, stopping at the first error.
+fn parse_chunk(chunk: &[u8], first: usize, offset: usize) -> ParsedChunk {
     let mut parsed = ParsedChunk {
         directives: Vec::new(),
         spheres: 0,
+        extremes: Extremes::default(),
         error: None,
     };
     for (i, line) in split_lines(chunk).enumerate() {
         let number = first + i;
-        match parse_line(number, line) {
+        // Every line is a slice of the chunk.
+        let start = offset + (line.as_ptr() as usize - chunk.as_ptr() as usize);
+        let result = check_line(number, start, line)
+            .and_then(|()| parse_line(number, line, &mut parsed.extremes));
+        match result {
             Ok(Directive::Blank) => {}
             Ok(directive) => {
                 parsed.spheres += usize::from(matches!(directive, Directive::Sphere(..)));
@@ -110,26 +140,6 @@ fn parse_chunk(chunk: &[u8], first: usize) -> ParsedChunk {
         }
     }
     parsed
-}
-
-/// The lines of `text`, without their LF or CRLF endings.
-fn split_lines(text: &[u8]) -> impl Iterator<Item = &[u8]> {
-    let text = text.strip_suffix(b"\n").unwrap_or(text);
-    let mut lines = text.split(|&b| b == b'\n');
-    // An empty input has no lines at all rather than one empty line.
-    let mut first = !text.is_empty();
-    std::iter::from_fn(move || {
-        if !first {
-            return None;
-        }
-        match lines.next() {
-            Some(l) => Some(l.strip_suffix(b"\r").unwrap_or(l)),
-            None => {
-                first = false;
-                None
-            }
-        }
-    })
 }
 
 /// What one line says.
@@ -242,10 +252,13 @@ struct Tokens<'a> {
     line: &'a [u8],
     number: usize,
     pos: usize,
+    /// The lengths read so far, this line's and those before it in its
+    /// chunk: a length that is no new extreme costs two comparisons.
+    extremes: &'a mut Extremes,
 }
 
 impl<'a> Tokens<'a> {
-    fn new(number: usize, line: &'a [u8]) -> Self {
+    fn new(number: usize, line: &'a [u8], extremes: &'a mut Extremes) -> Self {
         // `#` comments run to the end of the line.
         let line = match line.iter().position(|&b| b == b'#') {
             Some(hash) => &line[..hash],
@@ -255,6 +268,7 @@ impl<'a> Tokens<'a> {
             line,
             number,
             pos: 0,
+            extremes,
         }
     }
 
@@ -295,10 +309,31 @@ impl<'a> Tokens<'a> {
 
     /// The 1-based character column of byte offset `offset`.
     fn column(&self, offset: usize) -> usize {
-        String::from_utf8_lossy(&self.line[..offset.min(self.line.len())])
-            .chars()
-            .count()
-            + 1
+        column_of(self.line, offset)
+    }
+
+    /// Counts a length for the scene-wide bounds. Where it was given is
+    /// worked out only when it is a new extreme.
+    fn count(&mut self, field: &'static str, value: f64, offset: usize, scale: bool) {
+        let Tokens {
+            line,
+            number,
+            extremes,
+            ..
+        } = self;
+        let at = || Located {
+            length: Length {
+                field,
+                value,
+                line: *number,
+            },
+            column: column_of(line, offset),
+        };
+        if scale {
+            extremes.scale(value, at);
+        } else {
+            extremes.length(value, at);
+        }
     }
 
     /// An error located at byte offset `offset` of this line.
@@ -359,12 +394,49 @@ impl<'a> Tokens<'a> {
         }
     }
 
-    fn any(&mut self, field: &'static str) -> Result<f64, SceneError> {
-        self.number(field).map(|(v, _)| v)
-    }
-
     fn non_negative(&mut self, field: &'static str) -> Result<f64, SceneError> {
         self.checked(field, |v| v >= 0.0, "≥ 0")
+    }
+
+    /// A coordinate or camera value, within what the renderer can represent.
+    fn length(&mut self, field: &'static str) -> Result<f64, SceneError> {
+        let (value, offset) = self.number(field)?;
+        self.length_at(field, value, offset)?;
+        Ok(value)
+    }
+
+    /// Checks and counts a length already read.
+    fn length_at(
+        &mut self,
+        field: &'static str,
+        value: f64,
+        offset: usize,
+    ) -> Result<(), SceneError> {
+        bounds::check_length(field, value).map_err(|kind| self.error_at(offset, kind))?;
+        self.count(field, value, offset, false);
+        Ok(())
+    }
+
+    /// An ellipsoid's scale vector: non-zero, within the bounds, its axes
+    /// not too unequal.
+    fn scales(&mut self, fields: &[&'static str]) -> Result<DVec3, SceneError> {
+        let mut axes = [(0.0, "", 0); 3];
+        for (axis, &field) in axes.iter_mut().zip(fields) {
+            let (value, offset) = self.number(field)?;
+            if value == 0.0 {
+                let kind = SceneErrorKind::OutOfRange {
+                    field,
+                    value,
+                    rule: "non-zero",
+                };
+                return Err(self.error_at(offset, kind));
+            }
+            bounds::check_scale(field, value).map_err(|kind| self.error_at(offset, kind))?;
+            self.count(field, value, offset, true);
+            *axis = (value, field, offset);
+        }
+        bounds::check_axes(axes).map_err(|(offset, kind)| self.error_at(offset, kind))?;
+        Ok(DVec3::new(axes[0].0, axes[1].0, axes[2].0))
     }
 
     fn vector(
@@ -436,8 +508,13 @@ fn looks_numeric(token: &[u8]) -> bool {
         || std::str::from_utf8(token).is_ok_and(|s| s.parse::<f64>().is_ok())
 }
 
-fn parse_line(number: usize, line: &[u8]) -> Result<Directive, SceneError> {
-    let mut tokens = Tokens::new(number, line);
+/// Parses line number `number`, counting its lengths into `extremes`.
+fn parse_line(
+    number: usize,
+    line: &[u8],
+    extremes: &mut Extremes,
+) -> Result<Directive, SceneError> {
+    let mut tokens = Tokens::new(number, line, extremes);
     let Some((offset, word)) = tokens.next() else {
         return Ok(Directive::Blank);
     };
@@ -456,10 +533,13 @@ fn parse_line(number: usize, line: &[u8]) -> Result<Directive, SceneError> {
                 };
                 return Err(tokens.error_at(offset, kind));
             }
+            tokens.length_at("NEAR", value, offset)?;
             Directive::Extent(keyword, value, tokens.column(offset))
         }
         Keyword::Left | Keyword::Right | Keyword::Bottom | Keyword::Top => {
-            let (value, offset) = tokens.number(extent_field(keyword))?;
+            let field = extent_field(keyword);
+            let (value, offset) = tokens.number(field)?;
+            tokens.length_at(field, value, offset)?;
             Directive::Extent(keyword, value, tokens.column(offset))
         }
         Keyword::Res => Directive::Resolution(
@@ -485,7 +565,7 @@ fn parse_line(number: usize, line: &[u8]) -> Result<Directive, SceneError> {
         }
         Keyword::Light => {
             let dialect = named_dialect(&mut tokens);
-            let position = tokens.vector(&LIGHT_FIELDS[..3], Tokens::any)?;
+            let position = tokens.vector(&LIGHT_FIELDS[..3], Tokens::length)?;
             let intensity = tokens.vector(&LIGHT_FIELDS[3..], Tokens::non_negative)?;
             Directive::Light(
                 Light {
@@ -539,10 +619,8 @@ fn sphere(tokens: &mut Tokens) -> Result<(Sphere, Dialect), SceneError> {
         Dialect::Classic => &CLASSIC_SPHERE_FIELDS,
         Dialect::Browser => &BROWSER_SPHERE_FIELDS,
     };
-    let center = tokens.vector(&fields[0..3], Tokens::any)?;
-    let scale = tokens.vector(&fields[3..6], |t, field| {
-        t.checked(field, |v| v != 0.0, "non-zero")
-    })?;
+    let center = tokens.vector(&fields[0..3], Tokens::length)?;
+    let scale = tokens.scales(&fields[3..6])?;
     let color = tokens.vector(&fields[6..9], Tokens::non_negative)?;
     let ambient = tokens.non_negative(fields[9])?;
     let diffuse = tokens.non_negative(fields[10])?;
@@ -589,7 +667,8 @@ type Given<T> = Option<(T, usize)>;
 
 #[derive(Default)]
 struct SceneBuilder {
-    near: Given<f64>,
+    /// NEAR's value and column, like the other extents'.
+    near: Given<(f64, usize)>,
     left: Given<(f64, usize)>,
     right: Given<(f64, usize)>,
     bottom: Given<(f64, usize)>,
@@ -601,6 +680,8 @@ struct SceneBuilder {
     dialect: Given<Dialect>,
     spheres: Vec<Sphere>,
     lights: Vec<Light>,
+    /// The lengths of the lines folded so far, for the scene-wide bounds.
+    extremes: Extremes,
 }
 
 /// Stores a singleton's value, or reports the line that gave it first.
@@ -637,7 +718,7 @@ impl SceneBuilder {
             Directive::Blank => Ok(()),
             Directive::Extent(keyword, value, column) => {
                 let slot = match keyword {
-                    Keyword::Near => return set_once(&mut self.near, value, line, keyword),
+                    Keyword::Near => &mut self.near,
                     Keyword::Left => &mut self.left,
                     Keyword::Right => &mut self.right,
                     Keyword::Bottom => &mut self.bottom,
@@ -669,7 +750,8 @@ impl SceneBuilder {
     /// A line in the other dialect fails on its field count; saying so is
     /// more useful than naming the missing field.
     fn explain(&self, line_number: usize, line: &[u8], error: SceneError) -> SceneError {
-        let mut tokens = Tokens::new(line_number, line);
+        let mut unused = Extremes::default();
+        let mut tokens = Tokens::new(line_number, line, &mut unused);
         let is_object = tokens
             .next()
             .and_then(|(_, word)| Keyword::from_token(word))
@@ -710,7 +792,7 @@ impl SceneBuilder {
                 keyword: keyword.name(),
             },
         };
-        let (near, _) = self.near.ok_or_else(|| missing(Keyword::Near))?;
+        let ((near, near_column), near_line) = self.near.ok_or_else(|| missing(Keyword::Near))?;
         let left = self.left.ok_or_else(|| missing(Keyword::Left))?;
         let right = self.right.ok_or_else(|| missing(Keyword::Right))?;
         let bottom = self.bottom.ok_or_else(|| missing(Keyword::Bottom))?;
@@ -718,6 +800,14 @@ impl SceneBuilder {
         let ((width, height), _) = self.resolution.ok_or_else(|| missing(Keyword::Res))?;
         check_extent((Keyword::Left, left), (Keyword::Right, right))?;
         check_extent((Keyword::Bottom, bottom), (Keyword::Top, top))?;
+        self.extremes.check(Located {
+            length: Length {
+                field: "NEAR",
+                value: near,
+                line: near_line,
+            },
+            column: near_column,
+        })?;
         // A file with an OUTPUT line is classic even if it has no SPHERE or LIGHT line.
         let dialect = self.dialect.map_or(Dialect::Classic, |(d, _)| d);
         Ok(Scene {
@@ -780,6 +870,7 @@ fn check_extent(
 
 #[cfg(test)]
 mod tests {
+    use super::super::lines::CHUNK_BYTES;
     use super::*;
     use proptest::prelude::*;
 

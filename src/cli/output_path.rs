@@ -1,0 +1,163 @@
+//! Where `voxtrace render` writes its image, and what it refuses to write
+//! over or to.
+
+use super::refusal::Refusal;
+use super::CliError;
+use crate::output::Format;
+use crate::scene::Scene;
+use std::fs;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+/// Longest file stem taken from a scene's OUTPUT name, as the service's.
+const MAX_STEM_CHARS: usize = 100;
+
+/// Where the image goes.
+#[derive(Debug, PartialEq)]
+pub enum Destination {
+    /// `-o -`: PNG on standard output.
+    Stdout,
+    File(PathBuf),
+}
+
+impl Destination {
+    /// `-o` as given, else the scene's OUTPUT name (reduced by
+    /// [`output_name`]), else the scene file's stem with `.ppm`, in the
+    /// current directory.
+    pub fn choose(given: Option<&Path>, scene: &Scene, scene_path: &Path) -> Destination {
+        match given {
+            Some(path) if path == Path::new("-") => Destination::Stdout,
+            Some(path) => Destination::File(path.to_owned()),
+            None => Destination::File(
+                scene
+                    .output
+                    .as_deref()
+                    .and_then(output_name)
+                    .unwrap_or_else(|| stem_name(scene_path)),
+            ),
+        }
+    }
+}
+
+/// A file name from a scene's OUTPUT, reduced as the service reduces its
+/// download names, since the scene may come from anyone: the name's stem,
+/// without any directory, of ASCII letters, digits, `-`, `_` and `.` only
+/// (others become `_`), at most [`MAX_STEM_CHARS`]; `.png` if the name
+/// ends so (any case), else `.ppm`. So OUTPUT can name neither a path, nor
+/// standard output, nor a file with control characters, nor the scene
+/// file itself (which is not a `.ppm` or `.png`, unless it is, see
+/// [`refuse_overwriting`]). `None` when nothing is left.
+pub fn output_name(name: &str) -> Option<PathBuf> {
+    let path = Path::new(name);
+    let stem: String = path
+        .file_stem()?
+        .to_string_lossy()
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .take(MAX_STEM_CHARS)
+        .collect();
+    if stem.trim_matches('.').is_empty() {
+        return None;
+    }
+    let format = Format::from_path(path);
+    Some(PathBuf::from(format!("{stem}.{}", format.extension())))
+}
+
+/// The scene file's stem with `.ppm`: the user's own choice of name.
+fn stem_name(scene_path: &Path) -> PathBuf {
+    let stem = scene_path.file_stem().unwrap_or_else(|| "render".as_ref());
+    PathBuf::from(stem).with_extension("ppm")
+}
+
+/// A PNG on a terminal is noise that can upset it: `-o -` wants a pipe or a file.
+pub fn refuse_terminal(destination: &Destination) -> Result<(), CliError> {
+    if *destination == Destination::Stdout && std::io::stdout().is_terminal() {
+        return Err(CliError::Refused(Refusal::Terminal));
+    }
+    Ok(())
+}
+
+/// Refuses to write the image over the scene file, whatever the path says
+/// (another spelling, a link): the same file is the same device and inode.
+pub fn refuse_overwriting(destination: &Destination, scene_path: &Path) -> Result<(), CliError> {
+    let Destination::File(output) = destination else {
+        return Ok(());
+    };
+    if same_file(output, scene_path) {
+        return Err(CliError::Refused(Refusal::OverwritesScene {
+            output: output.clone(),
+            scene: scene_path.to_owned(),
+        }));
+    }
+    Ok(())
+}
+
+/// Whether both paths exist and name one file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(a_meta), Ok(b_meta)) = (fs::metadata(a), fs::metadata(b)) else {
+        return false;
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        a_meta.dev() == b_meta.dev() && a_meta.ino() == b_meta.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (a_meta, b_meta);
+        matches!((fs::canonicalize(a), fs::canonicalize(b)), (Ok(x), Ok(y)) if x == y)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_names_keep_a_safe_stem_and_an_image_extension() {
+        let name = |n: &str| output_name(n).map(|p| p.to_string_lossy().into_owned());
+        assert_eq!(name("testSample.ppm").as_deref(), Some("testSample.ppm"));
+        assert_eq!(name("shot.PNG").as_deref(), Some("shot.png"));
+        assert_eq!(name("a\rb.ppm").as_deref(), Some("a_b.ppm"));
+        assert_eq!(
+            name("../../etc/pass\"wd x.ppm").as_deref(),
+            Some("pass_wd_x.ppm")
+        );
+        assert_eq!(name("self.txt").as_deref(), Some("self.ppm"));
+        assert_eq!(
+            name("-").as_deref(),
+            Some("-.ppm"),
+            "a file, not standard output"
+        );
+        assert_eq!(name("/"), None);
+        assert_eq!(name(".."), None);
+        let long = "x".repeat(300);
+        assert_eq!(name(&long).unwrap().len(), MAX_STEM_CHARS + ".ppm".len());
+    }
+
+    #[test]
+    fn the_same_file_under_another_path_is_the_same_file() {
+        let dir = std::env::temp_dir().join(format!("voxtrace-same-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let scene = dir.join("scene.txt");
+        fs::write(&scene, "NEAR 1\n").unwrap();
+        let other = dir.join("other.ppm");
+        assert!(same_file(&scene, &dir.join(".").join("scene.txt")));
+        assert!(!same_file(&scene, &other), "does not exist");
+        fs::write(&other, "").unwrap();
+        assert!(!same_file(&scene, &other));
+        #[cfg(unix)]
+        {
+            let link = dir.join("link.ppm");
+            std::os::unix::fs::symlink(&scene, &link).unwrap();
+            assert!(same_file(&scene, &link));
+        }
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

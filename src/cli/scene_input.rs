@@ -1,0 +1,36 @@
+//! Reading the scene file of `voxtrace render`, within bounds: a regular file
+//! larger than the limit is refused before a byte is read, and any other
+//! input (a pipe, a device) is refused once it goes past it; the text is
+//! parsed as it streams in (see `scene::read`).
+
+use super::refusal::Refusal;
+use super::CliError;
+use crate::scene::{self, ReadError, Scene};
+use std::fs::File;
+use std::path::Path;
+
+/// Reads and parses the scene at `path`, at most `max_bytes` of it.
+pub fn read_scene(path: &Path, max_bytes: u64) -> Result<Scene, CliError> {
+    let display = path.display().to_string();
+    let cannot_read = |e: std::io::Error| CliError::Failed(format!("cannot read {display}: {e}"));
+    let file = File::open(path).map_err(cannot_read)?;
+    let metadata = file.metadata().map_err(cannot_read)?;
+    if metadata.is_file() && metadata.len() > max_bytes {
+        return Err(too_large(&display, max_bytes));
+    }
+    scene::read(file, max_bytes).map_err(|e| match e {
+        ReadError::Io(e) => cannot_read(e),
+        ReadError::TooLarge { limit } => too_large(&display, limit),
+        ReadError::Scene(error) => CliError::Scene {
+            path: display.clone(),
+            error,
+        },
+    })
+}
+
+fn too_large(display: &str, limit: u64) -> CliError {
+    CliError::Refused(Refusal::TooLarge {
+        scene: display.to_owned(),
+        limit,
+    })
+}

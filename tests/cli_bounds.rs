@@ -1,0 +1,270 @@
+//! `voxtrace render` within bounds: endless and huge inputs end at once with
+//! a clear message (checked by their message and exit code, under a memory
+//! limit that reading them whole would break, never by the clock), the
+//! scene file is never written over, OUTPUT names only a plain file, and a
+//! PNG never goes to a terminal.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_voxtrace");
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("voxtrace-bounds-{tag}-{}", std::process::id()));
+    fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn scene_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+}
+
+fn voxtrace(dir: &Path, args: &[&str]) -> Output {
+    Command::new(BIN)
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// `voxtrace` with its address space limited to `kib` KiB, so that a read
+/// of the whole input fails instead of succeeding slowly.
+fn voxtrace_within(kib: u64, dir: &Path, args: &[&str]) -> Output {
+    Command::new("sh")
+        .current_dir(dir)
+        .arg("-c")
+        .arg(format!("ulimit -v {kib} && exec \"$0\" \"$@\""))
+        .arg(BIN)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Half a GiB: a few times what rendering a small scene takes, a quarter
+/// of the 2 GiB inputs below.
+const MEMORY_KIB: u64 = 512 * 1024;
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn dev_zero_is_refused_as_binary_on_its_first_line() {
+    let dir = temp_dir("zero");
+    let out = voxtrace_within(
+        MEMORY_KIB,
+        &dir,
+        &["render", "/dev/zero", "--threads", "1", "-o", "out.ppm"],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "/dev/zero: line 1, column 1: byte 0x00 is a control character: this is binary data"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!dir.join("out.ppm").exists());
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_sparse_2_gib_file_is_refused_for_its_size_and_read_no_further_than_its_error() {
+    let dir = temp_dir("sparse");
+    let path = dir.join("huge.txt");
+    let file = fs::File::create(&path).unwrap();
+    file.set_len(2 << 30).unwrap();
+    drop(file);
+    let run = |extra: &[&str]| {
+        let mut args = vec!["render", "huge.txt", "--threads", "1", "-o", "out.ppm"];
+        args.extend_from_slice(extra);
+        voxtrace_within(MEMORY_KIB, &dir, &args)
+    };
+
+    let out = run(&[]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "huge.txt: the scene is larger than 1610612736 bytes; --max-scene-bytes raises the limit"
+        ),
+        "{}",
+        stderr(&out)
+    );
+
+    // Allowed in, its zeros are binary data from the first byte.
+    let raised = ["--max-scene-bytes", "4294967296"];
+    let out = run(&raised);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("huge.txt: line 1, column 1: byte 0x00 is a control character"),
+        "{}",
+        stderr(&out)
+    );
+
+    // A bad first line ends the read there, with that line's error.
+    fs::write(&path, "NEAR x\n").unwrap();
+    fs::File::options()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(2 << 30)
+        .unwrap();
+    let out = run(&raised);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("huge.txt: line 1, column 6: expected a number for <n>, found \"x\""),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!dir.join("out.ppm").exists());
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A copy of `testShadow.txt` named `name` in `dir`, its OUTPUT line set to `output`.
+fn scene_named(dir: &Path, name: &str, output: &str) -> Vec<u8> {
+    let text = fs::read_to_string(scene_path("testShadow.txt")).unwrap();
+    let text: String = text
+        .lines()
+        .filter(|l| !l.starts_with("OUTPUT"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let text = format!("{text}OUTPUT {output}\n").into_bytes();
+    fs::write(dir.join(name), &text).unwrap();
+    text
+}
+
+#[test]
+fn the_scene_file_is_never_written_over() {
+    let dir = temp_dir("self");
+    let original = scene_named(&dir, "self.txt", "self.txt");
+    // OUTPUT naming the scene itself becomes self.ppm.
+    let out = voxtrace(&dir, &["render", "self.txt"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(fs::read(dir.join("self.txt")).unwrap(), original);
+    assert!(fs::read(dir.join("self.ppm")).unwrap().starts_with(b"P6\n"));
+
+    // -o naming it, under any spelling, is refused.
+    let dir_name = dir.file_name().unwrap().to_str().unwrap();
+    let mut spellings = vec![
+        "self.txt".to_owned(),
+        "./self.txt".to_owned(),
+        format!("../{dir_name}/self.txt"),
+    ];
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(dir.join("self.txt"), dir.join("link.ppm")).unwrap();
+        spellings.push("link.ppm".to_owned());
+    }
+    for output in &spellings {
+        let out = voxtrace(&dir, &["render", "self.txt", "-o", output]);
+        assert_eq!(out.status.code(), Some(2), "{output}: {}", stderr(&out));
+        assert!(
+            stderr(&out)
+                .contains("is the scene file self.txt itself: refusing to write the image over it"),
+            "{}",
+            stderr(&out)
+        );
+        assert_eq!(
+            fs::read(dir.join("self.txt")).unwrap(),
+            original,
+            "{output}"
+        );
+    }
+
+    // A scene whose own name is an image name, OUTPUT naming it.
+    let shot = scene_named(&dir, "shot.ppm", "shot.ppm");
+    let out = voxtrace(&dir, &["render", "shot.ppm"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert_eq!(fs::read(dir.join("shot.ppm")).unwrap(), shot);
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn output_names_only_a_plain_file_in_the_current_directory() {
+    let dir = temp_dir("names");
+    for (output, expected) in [
+        ("a\rb.ppm", "a_b.ppm"),
+        ("-", "-.ppm"),
+        ("sub/../../x y.PNG", "x_y.png"),
+    ] {
+        scene_named(&dir, "scene.txt", output);
+        let out = voxtrace(&dir, &["render", "scene.txt"]);
+        assert!(out.status.success(), "{output:?}: {}", stderr(&out));
+        assert!(
+            out.stdout.is_empty(),
+            "{output:?}: nothing on standard output"
+        );
+        let bytes = fs::read(dir.join(expected)).unwrap();
+        let magic: &[u8] = if expected.ends_with(".png") {
+            b"\x89PNG"
+        } else {
+            b"P6\n"
+        };
+        assert!(bytes.starts_with(magic), "{output:?}");
+    }
+    let mut names: Vec<String> = fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["-.ppm", "a_b.ppm", "scene.txt", "x_y.png"]);
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Standard output on a pseudo-terminal, as in an interactive shell.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[test]
+fn a_png_is_never_written_to_a_terminal() {
+    use std::os::fd::{FromRawFd, OwnedFd};
+    let (mut master, mut slave) = (0, 0);
+    // SAFETY: openpty writes two descriptors into the integers it is given;
+    // the null name, termios and window size pointers are allowed.
+    let status = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            std::ptr::null(),
+        )
+    };
+    assert_eq!(status, 0, "openpty");
+    // SAFETY: both descriptors were just opened and nothing else owns them.
+    let (master, slave) = unsafe { (OwnedFd::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+    // What reaches the terminal, read as it comes so that a writer never
+    // blocks on a full terminal; the read ends (EIO) once the child is gone.
+    let screen = std::thread::spawn(move || {
+        let mut master = fs::File::from(master);
+        let (mut seen, mut buf) = (Vec::new(), [0u8; 4096]);
+        while let Ok(n @ 1..) = std::io::Read::read(&mut master, &mut buf) {
+            seen.extend_from_slice(&buf[..n]);
+        }
+        seen
+    });
+    let dir = temp_dir("tty");
+    let out = Command::new(BIN)
+        .current_dir(&dir)
+        .args([
+            "render",
+            scene_path("testShadow.txt").to_str().unwrap(),
+            "-o",
+            "-",
+        ])
+        .stdout(slave)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("standard output is a terminal: redirect it"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(
+        screen.join().unwrap().is_empty(),
+        "nothing reached the terminal"
+    );
+    fs::remove_dir_all(&dir).unwrap();
+}
