@@ -31,8 +31,10 @@
 //!    u²·|f|. Across an ellipsoid whose axes differ by a factor r, |f| in the
 //!    thin axis's units is about r times its size in the others, so past
 //!    r ≈ 1/u² = 2.8e14 nothing of the thin axis is left. Measured against
-//!    f64, a plate renders the same up to r = 1e13 and not from 1e14 on:
-//!    [`limits::MAX_AXIS_RATIO`] = 1e12 keeps a factor 100.
+//!    f64 with the test in f32 throughout, a plate rendered the same up to
+//!    r = 1e13 and not from 1e14 on: [`limits::MAX_AXIS_RATIO`] = 1e12 keeps
+//!    a factor 100. (The hit test now runs in f64 where `|f|` is large,
+//!    which such a plate's is; the bound still guards the f32 shading.)
 
 use super::error::Length;
 use super::{SceneError, SceneErrorKind};

@@ -234,13 +234,11 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
         short_ids.append(&mut members[first_level]);
         first_level += 1;
     }
-    // Classes whose chosen cells come out equal share one level: walking two
-    // identical lattices would cost twice for nothing.
-    let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
-    for ids in members.into_iter().skip(first_level) {
-        let cell = choose_cell(&extents, &ids);
-        by_cell.entry(cell.to_bits()).or_default().extend(ids);
-    }
+    let parts = members
+        .into_iter()
+        .skip(first_level)
+        .flat_map(|ids| split_by_density(&extents, ids));
+    let by_cell = merge_equal_cells(&extents, parts);
     let mut order: Vec<u32> = short_ids.clone();
     let short = (0..order.len() as u32).collect();
     let mut rank = vec![u32::MAX; shapes.len()];
@@ -321,6 +319,74 @@ fn size_classes(histogram: &[(i32, usize)]) -> Vec<SizeClass> {
         }
     }
     merged
+}
+
+/// Parts of one size class whose chosen cells come out equal share one
+/// level, its cell chosen again for them together: walking two identical
+/// lattices would cost twice for nothing, and together the parts are
+/// denser than each alone. Keyed by the cell's bits, coarsest last.
+fn merge_equal_cells(
+    extents: &[Extent],
+    parts: impl Iterator<Item = Vec<u32>>,
+) -> BTreeMap<u64, Vec<u32>> {
+    let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
+    for ids in parts {
+        let mut cell = choose_cell(extents, &ids);
+        let mut ids = ids;
+        // A merged level's cell may come out finer, onto another level's.
+        while let Some(mut other) = by_cell.remove(&cell.to_bits()) {
+            other.append(&mut ids);
+            ids = other;
+            let again = choose_cell(extents, &ids);
+            if again == cell {
+                break;
+            }
+            cell = again;
+        }
+        by_cell.insert(cell.to_bits(), ids);
+    }
+    by_cell
+}
+
+/// Cells of this many of a class's finest a side decide which of its
+/// spheres are crowded (see [`split_by_density`]).
+const DENSITY_PROBE: f64 = 4.0;
+/// A sphere whose probe cell holds at most this many centres is sparse.
+const SPARSE_NEIGHBOURS: u32 = 2;
+/// The smaller part of a split must hold at least this share of the class.
+const MIN_SPLIT_SHARE: f64 = 1.0 / 64.0;
+
+/// A size class split into its spheres in crowded places and the rest: dense
+/// clumps want the finest cells, while the same sizes scattered as dust
+/// through empty space want cells about their spacing, or a ray pays a
+/// step for every small empty cell between two grains of dust. A sphere is
+/// sparse when the cell of [`DENSITY_PROBE`] finest cells a side that holds
+/// its centre holds at most [`SPARSE_NEIGHBOURS`] centres.
+fn split_by_density(extents: &[Extent], ids: Vec<u32>) -> Vec<Vec<u32>> {
+    let reach = ids
+        .par_iter()
+        .map(|&id| extents[id as usize].reach)
+        .reduce(|| 0.0, f64::max);
+    let probe = (2.0 * reach).log2().ceil().exp2() * DENSITY_PROBE;
+    let key = |id: u32| {
+        let c = (extents[id as usize].center / probe)
+            .to_array()
+            .map(|v| floor_to_int(v) as u64 & ((1 << 21) - 1));
+        c[0] | c[1] << 21 | c[2] << 42
+    };
+    let mut keys: Vec<u64> = ids.par_iter().map(|&id| key(id)).collect();
+    keys.voracious_mt_sort(rayon::current_num_threads());
+    let crowded = |id: u32| {
+        let k = key(id);
+        let count = keys.partition_point(|&x| x <= k) - keys.partition_point(|&x| x < k);
+        count > SPARSE_NEIGHBOURS as usize
+    };
+    let (dense, sparse): (Vec<u32>, Vec<u32>) = ids.par_iter().partition(|&&id| crowded(id));
+    let smaller = dense.len().min(sparse.len()) as f64;
+    if smaller < MIN_SPLIT_SHARE * ids.len() as f64 {
+        return vec![ids];
+    }
+    vec![dense, sparse]
 }
 
 /// The cell side of a level: the smallest power of two at least its largest
