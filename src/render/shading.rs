@@ -3,6 +3,7 @@
 //! Geometry runs in the precision `R`; colours are always f64 (cheap next to
 //! the intersection work, and it keeps the f32/f64 comparison about geometry).
 
+use super::deadline::Stop;
 use super::{RayCounts, RenderOptions, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{Hit, SphereIndex};
@@ -30,6 +31,9 @@ pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     weight_norm: fn(DVec3) -> f64,
     /// What a secondary ray that meets nothing returns.
     secondary_miss: DVec3,
+    /// Checked before every shadow ray and bounce: once it is raised, they
+    /// return black and the render unwinds at once (its image is dropped).
+    stop: &'a Stop,
 }
 
 impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
@@ -38,6 +42,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         shapes: &'a [Ellipsoid<R>],
         index: &'a I,
         options: &RenderOptions,
+        stop: &'a Stop,
     ) -> Self {
         let lights = scene
             .lights
@@ -67,6 +72,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             min_weight,
             weight_norm,
             secondary_miss,
+            stop,
         }
     }
 
@@ -75,6 +81,12 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     pub fn eye_hits(&self, dirs: &[V3<R>], out: &mut [Option<Hit<R>>]) {
         self.index
             .closest_hits(V3::<R>::ZERO, dirs, R::one(), R::infinity(), out);
+    }
+
+    /// [`Self::eye_hits`] for one ray.
+    pub fn eye_hit(&self, dir: V3<R>) -> Option<Hit<R>> {
+        self.index
+            .closest_hit(&Ray::new(V3::<R>::ZERO, dir), R::one(), R::infinity())
     }
 
     /// The colour seen along the eye ray with direction `dir`, whose nearest
@@ -99,6 +111,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         weight: DVec3,
         counts: &mut RayCounts,
     ) -> DVec3 {
+        if self.stop.now() {
+            return DVec3::ZERO;
+        }
         match self.index.closest_hit(ray, R::zero(), R::infinity()) {
             Some(hit) => self.shade(ray, hit, depth, weight, counts),
             None => self.secondary_miss,
@@ -158,6 +173,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             let n_dot_l = n.dot(to_light);
             if n_dot_l.is_nan() || n_dot_l <= R::zero() {
                 continue;
+            }
+            if self.stop.now() {
+                return sum;
             }
             if self.trace_shadow_ray(surface, position, counts) {
                 continue;
