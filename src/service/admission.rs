@@ -444,7 +444,7 @@ mod tests {
 
     #[test]
     fn bodies_are_charged_up_to_the_budget_and_give_it_back() {
-        let memory = MemoryBudget::new(1000);
+        let memory = MemoryBudget::new(1000, 0);
         let budget = BodyBudget::new(100, &memory);
         let mut a = budget.charge();
         assert!(a.grow(60));
@@ -462,7 +462,7 @@ mod tests {
 
     #[test]
     fn a_body_is_also_held_to_the_whole_memory_budget() {
-        let memory = MemoryBudget::new(50);
+        let memory = MemoryBudget::new(50, 0);
         let budget = BodyBudget::new(100, &memory);
         let mut a = budget.charge();
         assert!(a.grow(40));

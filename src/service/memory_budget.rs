@@ -4,9 +4,12 @@
 //! charged before (or, for a body, as) it is allocated and gives its charge
 //! back when dropped; what cannot be charged is refused with 503.
 //!
-//! Charges are estimates, so the budget is also held against what the
-//! process really has resident: a large charge is only taken if the
-//! resident set plus the charge stays within the budget.
+//! The service's own resident set when it starts (code, threads, pools) is
+//! charged from the start, so the charges bound what the process has
+//! resident, not only what requests hold. Charges are estimates, so the
+//! budget is also held against what the process really has resident: a
+//! large charge is only taken if the resident set plus the charge stays
+//! within the budget.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -30,10 +33,12 @@ impl std::fmt::Debug for MemoryBudget {
 }
 
 impl MemoryBudget {
-    pub fn new(limit: u64) -> Arc<Self> {
+    /// A budget of `limit` bytes of which `baseline` (the service's own
+    /// footprint) are charged for good.
+    pub fn new(limit: u64, baseline: u64) -> Arc<Self> {
         Arc::new(MemoryBudget {
             limit,
-            used: AtomicU64::new(0),
+            used: AtomicU64::new(baseline),
         })
     }
 
@@ -41,7 +46,7 @@ impl MemoryBudget {
         self.limit
     }
 
-    /// Bytes charged now.
+    /// Bytes charged now, the baseline included.
     pub fn used(&self) -> u64 {
         self.used.load(Ordering::Relaxed)
     }
@@ -129,22 +134,22 @@ mod tests {
 
     #[test]
     fn charges_add_up_to_the_limit_and_are_given_back() {
-        let budget = MemoryBudget::new(100);
+        let budget = MemoryBudget::new(110, 10);
         let mut a = budget.empty();
         assert!(a.grow(60));
         assert!(budget.take(41, || None).is_none());
         let b = budget.take(40, || None).unwrap();
-        assert_eq!(budget.used(), 100);
+        assert_eq!(budget.used(), 110);
         a.shrink_to(10);
-        assert_eq!((a.bytes(), budget.used()), (10, 50));
+        assert_eq!((a.bytes(), budget.used()), (10, 60));
         drop(b);
         drop(a);
-        assert_eq!(budget.used(), 0);
+        assert_eq!(budget.used(), 10);
     }
 
     #[test]
     fn a_charge_that_fits_the_accounts_but_not_the_resident_set_is_refused() {
-        let budget = MemoryBudget::new(1000);
+        let budget = MemoryBudget::new(1000, 0);
         assert!(budget.take(500, || Some(600)).is_none());
         // Nothing stays charged for the refusal.
         assert_eq!(budget.used(), 0);

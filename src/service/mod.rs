@@ -177,7 +177,18 @@ impl Server {
             .thread_name(|i| format!("voxtrace-render-{i}"))
             .build()
             .map_err(io::Error::other)?;
-        let memory = MemoryBudget::new(config.memory_budget);
+        // Measured once the pool's threads exist: what the service holds idle.
+        let baseline = memory_budget::resident_bytes().unwrap_or(0);
+        if config.memory_budget < baseline + config.max_body {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "--memory-budget must be at least {} bytes: the service's own {baseline} resident bytes and one --max-body",
+                    baseline + config.max_body
+                ),
+            ));
+        }
+        let memory = MemoryBudget::new(config.memory_budget, baseline);
         let state = State {
             admission: Admission::new(config.concurrent_renders, config.queue),
             bodies: BodyBudget::new(config.body_memory, &memory),
