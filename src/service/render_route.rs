@@ -9,6 +9,7 @@ use crate::limits;
 use crate::output::Format;
 use crate::render::{render_scene, CancelToken, Deadline, RenderError, RenderOptions, Rendered};
 use crate::scene::{self, Scene};
+use std::panic::{self, AssertUnwindSafe};
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
@@ -18,6 +19,9 @@ const QUEUE_POLL: Duration = Duration::from_millis(100);
 /// How often a running render checks that its client is still there; one
 /// that left has its render stopped within this time (and one ray's walk).
 const CLIENT_POLL: Duration = Duration::from_millis(100);
+/// How long after cancelling a render its answer may wait for the render to
+/// return: the bound on a stopped render's overshoot that the service states.
+const STOP_GRACE: Duration = Duration::from_millis(100);
 
 /// The figures of a render, sent as headers and exposed to scripts.
 const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height";
@@ -170,6 +174,8 @@ pub fn handle(
             .into())
         }
     };
+    // The budget runs from here: parsing, indexing and tracing all count.
+    let budget = Budget::from_now(config.render_timeout);
     // Parsed once the slot is taken, so at most one parsed scene per slot
     // is held (the waiting requests hold only their bodies, within their
     // budget), and a waiting request is never stuck in a parse queued on
@@ -183,37 +189,33 @@ pub fn handle(
         .map_err(|e| ApiError::scene(&e))?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
-    let mut held = charge_render(state, &scene, query.format)?;
+    let held = charge_render(state, &scene, query.format)?;
+    if budget.spent() {
+        return Err(budget.stopped(state));
+    }
     let options = RenderOptions {
         spp: query.spp,
         depth: query.depth,
         ..RenderOptions::default()
     };
+    let name = download_name(&scene, query.format);
     let started = Instant::now();
-    let rendered = match watched_render(state, conn, may_probe, &scene, options) {
-        Watched::Done(rendered) => rendered,
+    let watched = watched_render(state, conn, may_probe, scene, options, held, &budget);
+    // The render has stopped (or, stopped but stuck under another render's
+    // work on a pool thread, gives its memory back when that ends): the
+    // slot is free for the next render; encoding runs on this thread.
+    drop(ticket);
+    let (rendered, mut held) = match watched {
+        Watched::Done(rendered, held) => (rendered, held),
         Watched::Gone => {
             state.metrics.render_abandoned();
             return Ok(None);
         }
-        Watched::OutOfTime => {
-            let elapsed = started.elapsed();
-            state
-                .metrics
-                .render_stopped(elapsed.saturating_sub(config.render_timeout));
-            return Err(ApiErrorKind::TimeBudget {
-                budget_ms: config.render_timeout.as_millis(),
-                elapsed_ms: elapsed.as_millis(),
-            }
-            .into());
-        }
+        Watched::OutOfTime => return Err(budget.stopped(state)),
         Watched::Failed(RenderError::BadOption(why)) => return Err(bad_query(why)),
         Watched::Failed(other) => return Err(ApiErrorKind::Encode(other.to_string()).into()),
     };
     let elapsed = started.elapsed();
-    // Encoding runs on this handler thread: the slot is free for the next
-    // render. The index is gone; the scene is kept for the download name.
-    drop(ticket);
     let rays = rendered.stats.rays.total();
     state.metrics.render(elapsed, rays);
 
@@ -228,10 +230,7 @@ pub fn handle(
     let mut response = Response::new(200, query.format.mime_type(), image)
         .with_header(
             "Content-Disposition",
-            format!(
-                "inline; filename=\"{}\"",
-                download_name(&scene, query.format)
-            ),
+            format!("inline; filename=\"{name}\""),
         )
         .with_header("Cache-Control", "no-store")
         .with_header("X-Render-Ms", format_ms(elapsed))
@@ -243,9 +242,47 @@ pub fn handle(
     Ok(Some(response))
 }
 
+/// A render's time budget: from when it takes its slot, through parsing,
+/// indexing and tracing.
+struct Budget {
+    started: Instant,
+    length: Duration,
+}
+
+impl Budget {
+    fn from_now(length: Duration) -> Self {
+        Budget {
+            started: Instant::now(),
+            length,
+        }
+    }
+
+    fn end(&self) -> Instant {
+        self.started + self.length
+    }
+
+    fn spent(&self) -> bool {
+        Instant::now() >= self.end()
+    }
+
+    /// The answer to a render stopped at the budget's end, counted.
+    fn stopped(&self, state: &State) -> ApiError {
+        let elapsed = self.started.elapsed();
+        state
+            .metrics
+            .render_stopped(elapsed.saturating_sub(self.length));
+        ApiErrorKind::TimeBudget {
+            budget_ms: self.length.as_millis(),
+            elapsed_ms: elapsed.as_millis(),
+        }
+        .into()
+    }
+}
+
 /// How a watched render ended.
 enum Watched {
-    Done(Rendered),
+    /// With the charge of its memory.
+    Done(Rendered, Charge),
     /// Its client left; it was stopped.
     Gone,
     /// It ran out of its time budget; it was stopped.
@@ -255,59 +292,66 @@ enum Watched {
 
 /// Runs the render on the pool while this (handler) thread keeps its clock:
 /// at the budget's end, or once the client is found gone, it cancels the
-/// render, which then stops within one ray's walk, and returns once the
-/// render has (so the slot is free when this returns).
+/// render, whose rays then stop within one walk, and returns once the
+/// render has returned, or [`STOP_GRACE`] after the cancel at the latest.
+/// The render can outlast that only when a pool thread that waited for its
+/// work picked up another render meanwhile (as rayon threads do while they
+/// wait): it returns once that one does, and gives back `held`, which it
+/// keeps until then, and the scene. A panic in the render is passed on here.
 fn watched_render(
     state: &State,
     conn: &Connection,
     may_probe: bool,
-    scene: &Scene,
+    scene: Scene,
     options: RenderOptions,
+    held: Charge,
+    budget: &Budget,
 ) -> Watched {
     let token = CancelToken::new();
     let options = RenderOptions {
         deadline: Some(Deadline::on_cancel(&token)),
         ..options
     };
-    let deadline = Instant::now() + state.config.render_timeout;
     let (done, finished) = mpsc::sync_channel(1);
-    state.pool.in_place_scope(|s| {
-        s.spawn(|_| {
-            // The receiver outlives the scope: the send cannot fail.
-            let _ = done.send(render_scene(scene, &options, &|_| {}));
-        });
-        let mut stopped = None;
-        loop {
-            let wait = match stopped {
-                Some(_) => CLIENT_POLL,
-                None => deadline
-                    .saturating_duration_since(Instant::now())
-                    .min(CLIENT_POLL),
-            };
-            match finished.recv_timeout(wait) {
-                Ok(result) => {
-                    return match (result, stopped) {
-                        (Ok(rendered), _) => Watched::Done(rendered),
-                        (Err(_), Some(why)) => why,
-                        (Err(e), None) => Watched::Failed(e),
-                    }
+    state.pool.spawn(move || {
+        let result =
+            panic::catch_unwind(AssertUnwindSafe(|| render_scene(&scene, &options, &|_| {})));
+        // Nobody may wait any more: then the charge is given back here,
+        // once the memory it stands for is.
+        let _ = done.send((result, held));
+    });
+    let mut stopped: Option<(Watched, Instant)> = None;
+    loop {
+        let wait = match &stopped {
+            Some((_, at)) => (*at + STOP_GRACE).saturating_duration_since(Instant::now()),
+            None => budget
+                .end()
+                .saturating_duration_since(Instant::now())
+                .min(CLIENT_POLL),
+        };
+        match finished.recv_timeout(wait) {
+            Ok((Err(panicked), _)) => panic::resume_unwind(panicked),
+            Ok((Ok(Ok(rendered)), held)) => return Watched::Done(rendered, held),
+            Ok((Ok(Err(error)), _)) => {
+                return stopped.map_or(Watched::Failed(error), |(why, _)| why);
+            }
+            Err(RecvTimeoutError::Disconnected) => unreachable!("the render always answers"),
+            Err(RecvTimeoutError::Timeout) => {
+                if let Some((why, _)) = stopped {
+                    return why;
                 }
-                // The render panicked; the scope passes the panic on.
-                Err(RecvTimeoutError::Disconnected) => return Watched::Gone,
-                Err(RecvTimeoutError::Timeout) if stopped.is_none() => {
-                    if Instant::now() >= deadline {
-                        stopped = Some(Watched::OutOfTime);
-                    } else if conn.client_gone(may_probe) {
-                        stopped = Some(Watched::Gone);
-                    }
-                    if stopped.is_some() {
-                        token.cancel();
-                    }
-                }
-                Err(RecvTimeoutError::Timeout) => {}
+                let why = if budget.spent() {
+                    Watched::OutOfTime
+                } else if conn.client_gone(may_probe) {
+                    Watched::Gone
+                } else {
+                    continue;
+                };
+                token.cancel();
+                stopped = Some((why, Instant::now()));
             }
         }
-    })
+    }
 }
 
 /// Charges what the render will hold to the memory budget before it
