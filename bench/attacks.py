@@ -37,8 +37,9 @@ def scene(*lines):
 
 CAMERA = ("NEAR 1", "LEFT -1", "RIGHT 1", "BOTTOM -1", "TOP 1")
 NESTED_GLASS = scene(*CAMERA, "RES 64 64",
-                     "SPHERE a 0 0 -4 2 2 2 1 1 1 0 0 0 1 1 1 1.5",
-                     "SPHERE b 0 0 -4 1 1 1 1 1 1 0 0 0 1 1 1 1.5")
+                     "SPHERE a 0 0 -4 2 2 2 1 1 1 0 0 0.5 1 1 1 1.5",
+                     "SPHERE b 0 0 -4 1 1 1 1 1 1 0 0 0 1 1 1 1.5",
+                     "LIGHT l 0 5 0 1 1 1")
 HOT_CELL = scene(*CAMERA, "RES 8 8",
                  *(f"SPHERE s{i} 0 0 -5 1 1 1 1 0 0 0.2 0.8 0 0 1" for i in range(200_000)),
                  "LIGHT l 0 5 0 1 1 1")
