@@ -97,19 +97,21 @@ fn a_client_that_leaves_mid_render_has_its_render_stopped_and_its_slot_freed() {
     assert_eq!(next.status, 200, "{}", next.text());
 }
 
+fn expected_png(scene: &[u8]) -> Vec<u8> {
+    let parsed = voxtrace::scene::parse(scene).unwrap();
+    let options = voxtrace::render::RenderOptions::default();
+    let rendered = voxtrace::render::render_scene(&parsed, &options, &|_| {}).unwrap();
+    rendered
+        .image
+        .encode(voxtrace::output::Format::Png)
+        .unwrap()
+}
+
 #[test]
 fn a_half_closed_post_gets_its_image() {
     let server = start(ServiceConfig::default());
     let scene = sample("testSample.txt");
-    let expected = {
-        let parsed = voxtrace::scene::parse(&scene).unwrap();
-        let options = voxtrace::render::RenderOptions::default();
-        let rendered = voxtrace::render::render_scene(&parsed, &options, &|_| {}).unwrap();
-        rendered
-            .image
-            .encode(voxtrace::output::Format::Png)
-            .unwrap()
-    };
+    let expected = expected_png(&scene);
     for version in ["HTTP/1.1", "HTTP/1.0"] {
         let mut client = Client::connect(server.addr());
         let request = String::from_utf8(request_bytes("POST", "/render", &[], &scene)).unwrap();
@@ -120,6 +122,38 @@ fn a_half_closed_post_gets_its_image() {
         assert!(reply.body == expected, "{version}: not the scene's image");
         assert!(client.closed());
     }
+}
+
+#[test]
+fn a_half_closed_post_that_waits_for_a_slot_is_answered_once_it_has_one() {
+    // The only slot is held by a render that only its client's leaving ends.
+    let server = start(ServiceConfig {
+        concurrent_renders: 1,
+        queue: 1,
+        render_timeout: Duration::from_secs(600),
+        ..ServiceConfig::default()
+    });
+    let addr = server.addr();
+    let mut holder = Client::connect(addr);
+    holder.send(&request_bytes(
+        "POST",
+        "/render?depth=64",
+        &[],
+        &nested_glass(),
+    ));
+    wait_for_metric(addr, "voxtrace_renders_in_flight", 1);
+    let scene = sample("testSample.txt");
+    let mut waiting = Client::connect(addr);
+    waiting.send(&request_bytes("POST", "/render", &[], &scene));
+    waiting.half_close();
+    // Seen waiting with its sending side shut, it is told to go on waiting
+    // (an HTTP/1.1 client skips a 100 it did not ask for), not dropped.
+    assert_eq!(waiting.read_reply(false).status, 100);
+    drop(holder);
+    let reply = waiting.read_final_reply();
+    assert_eq!(reply.status, 200, "{}", reply.text());
+    assert!(reply.body == expected_png(&scene));
+    assert_eq!(metric(addr, "voxtrace_renders_abandoned_total"), Some(1));
 }
 
 #[test]
