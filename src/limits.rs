@@ -27,7 +27,8 @@ pub const ADAPTIVE_MIN_WEIGHT: f64 = 1.0 / 512.0;
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
 /// Open client connections. Each has its own small reader thread, so slow or
 /// idle clients never wait behind one another or hold the render path; past
-/// this a new connection is answered 503 at once and closed.
+/// this a new connection gets a place in the health-check reserve, or is
+/// answered 503 at once and closed.
 pub const DEFAULT_MAX_CONNECTIONS: usize = 1_024;
 /// Open connections from one peer address: half the cap, so one client
 /// holding all it may still leaves the other half to everyone else.

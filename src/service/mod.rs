@@ -8,8 +8,13 @@
 //! on the shared rayon pool. A slow or idle client so costs one parked thread
 //! until its deadline, never a place another client's render waits for.
 //! Every wait has a deadline and every buffer a bound, so no client can make
-//! the service grow without limit; once it is quiet, the memory its requests
-//! freed is given back to the system ([`memory`]).
+//! the service grow without limit: a render stops within one ray's walk of
+//! its time budget or of its client leaving ([`render_route`]); bodies,
+//! scenes, framebuffers and encoded images are charged to one memory budget
+//! before they are allocated ([`memory_budget`]); one peer holds at most its
+//! share of the connections, and a reserve keeps `/healthz` answered
+//! ([`registry`]). Once the service is quiet, the memory its requests freed
+//! is given back to the system ([`memory`]).
 
 mod admission;
 mod assets;
