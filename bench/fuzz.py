@@ -113,6 +113,9 @@ def main():
                         health_failures.append(i)
             try:
                 reply = exchange(host, port, build(rng))
+                # A half-closed render is told 100 Continue first: count the final answer.
+                while reply.startswith(b"HTTP/1.1 1") and b"\r\n\r\n" in reply:
+                    reply = reply.split(b"\r\n\r\n", 1)[1]
                 status = reply.split(b"\r\n", 1)[0].decode("latin-1")[:12] or "(closed)"
             except socket.timeout:
                 status = "(timeout)"

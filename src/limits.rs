@@ -54,8 +54,19 @@ pub const ADAPTIVE_MIN_WEIGHT: f64 = 1.0 / 512.0;
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
 /// Open client connections. Each has its own small reader thread, so slow or
 /// idle clients never wait behind one another or hold the render path; past
-/// this a new connection is answered 503 at once and closed.
+/// this a new connection gets a place in the health-check reserve, or is
+/// answered 503 at once and closed.
 pub const DEFAULT_MAX_CONNECTIONS: usize = 1_024;
+/// Open connections from one peer address: half the cap, so one client
+/// holding all it may still leaves the other half to everyone else.
+pub const DEFAULT_MAX_CONNECTIONS_PER_PEER: usize = DEFAULT_MAX_CONNECTIONS / 2;
+/// Connections past either cap that are still read, for a `GET /healthz`
+/// or `/metrics` (anything else is refused with the cap's reason): one
+/// client at its cap cannot make the service look dead to its monitors.
+pub const HEALTH_RESERVE_CONNECTIONS: usize = 16;
+/// How long a connection in the reserve may take to send its request head,
+/// from its accept: a monitor sends at once, and the reserve must turn over.
+pub const RESERVE_HEAD_TIMEOUT_MS: u64 = 250;
 /// Renders running at once on the render pool. Each render is itself
 /// parallel, so more slots do not add threads; they cover the gap between a
 /// render and the next in its slot (the next waiter woken, its scene parsed),
@@ -71,6 +82,18 @@ pub const DEFAULT_MAX_BODY: u64 = 16 * 1024 * 1024;
 /// Request bodies held in memory at once, in bytes, charged as they arrive;
 /// a body that would go past it is answered 503.
 pub const DEFAULT_BODY_MEMORY: u64 = 256 * 1024 * 1024;
+/// Everything requests make the service hold at once, in bytes: bodies,
+/// parsed scenes with their indexes, framebuffers and encoded images until
+/// written. A render whose image and encoding would go past it is refused
+/// (503) before it starts; the process's measured resident set is held to
+/// it too. Room for a dozen of the largest images (4096 × 4096, 48 MiB of
+/// pixels and as much again encoded).
+pub const DEFAULT_MEMORY_BUDGET: u64 = 1024 * 1024 * 1024;
+/// What the index of a scene costs per sphere while it is built and used,
+/// for the memory budget: 39–63 bytes once built, and about as much again
+/// for the pairs its build sorts (the 10^7-sphere scene peaked at some 240
+/// bytes a sphere beyond its text).
+pub const INDEX_BUILD_BYTES_PER_SPHERE: usize = 256;
 /// Largest request head (request line and headers) in bytes; larger is 431.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 /// Most header lines in one request; more is 431.
@@ -81,8 +104,9 @@ pub const DEFAULT_MAX_PIXELS: u64 = 4096 * 4096;
 pub const DEFAULT_MAX_SAMPLES: u64 = 64 * 1024 * 1024;
 /// Most spheres in one scene the service accepts.
 pub const DEFAULT_MAX_SERVICE_SPHERES: usize = 1_000_000;
-/// Time budget of one render, queueing included; past it the render is
-/// abandoned and the request answered 422 (the scene costs too much).
+/// Time budget of one render from the moment it starts tracing, and the
+/// longest wait in the queue. Past it the render is stopped (within one
+/// ray's walk) and the request answered 504 (the scene costs too much time).
 pub const DEFAULT_RENDER_TIMEOUT_MS: u64 = 30_000;
 /// How long a kept-alive connection may sit idle between requests.
 pub const DEFAULT_IDLE_TIMEOUT_MS: u64 = 5_000;

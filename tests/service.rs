@@ -536,13 +536,13 @@ fn a_full_queue_answers_503_and_a_costly_render_stops_at_its_budget() {
     );
     assert_eq!(turned_away.status, 503);
     assert_eq!(turned_away.header("retry-after"), Some("1"));
-    assert_eq!(turned_away.json()["error"], "busy");
+    assert_eq!(turned_away.json()["error"], "queue_full");
 
     let started = Instant::now();
     let reply = costly.join().unwrap();
     assert_eq!(
         (reply.status, reply.json()["error"].as_str()),
-        (422, Some("time_budget"))
+        (504, Some("time_budget"))
     );
     assert!(
         started.elapsed() < Duration::from_secs(10),
@@ -589,7 +589,7 @@ fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered(
     });
     wait_for_metric(addr, "voxtrace_render_queue_depth", 1);
 
-    assert_eq!(costly.join().unwrap().status, 422);
+    assert_eq!(costly.join().unwrap().status, 504);
     let reply = queued.join().unwrap();
     assert_eq!(reply.status, 200, "{}", reply.text());
     // Only that last render ran: the costly one stopped at its budget
@@ -814,7 +814,7 @@ fn bodies_past_the_memory_budget_get_503_and_the_connection_stays_usable() {
         (reply.status, reply.header("retry-after")),
         (503, Some("1"))
     );
-    assert_eq!(reply.json()["error"], "busy");
+    assert_eq!(reply.json()["error"], "body_memory");
     // The refused body was read to its end: the next request parses.
     assert_eq!(client.request("GET", "/healthz", &[], b"").status, 200);
     drop(holder);

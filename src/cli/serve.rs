@@ -14,6 +14,10 @@ pub struct ServeArgs {
     /// Open connections, each with its own reader thread; past this a new one gets 503.
     #[arg(long, default_value_t = limits::DEFAULT_MAX_CONNECTIONS)]
     max_connections: usize,
+    /// Open connections from one peer address; past this (or the cap) a new
+    /// one may only ask for /healthz or /metrics, from a small reserve.
+    #[arg(long, default_value_t = limits::DEFAULT_MAX_CONNECTIONS_PER_PEER)]
+    max_connections_per_peer: usize,
     /// Renders running at once.
     #[arg(long, default_value_t = limits::DEFAULT_CONCURRENT_RENDERS)]
     renders: usize,
@@ -26,6 +30,11 @@ pub struct ServeArgs {
     /// Request bodies held in memory at once, in bytes (past it: 503).
     #[arg(long, default_value_t = limits::DEFAULT_BODY_MEMORY)]
     body_memory: u64,
+    /// Memory for everything requests hold (bodies, scenes, framebuffers,
+    /// encoded images until written), in bytes; the resident set is held to
+    /// it too. A render that does not fit gets 503.
+    #[arg(long, default_value_t = limits::DEFAULT_MEMORY_BUDGET)]
+    memory_budget: u64,
     /// Largest image, width × height (larger: 422).
     #[arg(long, default_value_t = limits::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
@@ -35,7 +44,8 @@ pub struct ServeArgs {
     /// Most spheres per scene (more: 422).
     #[arg(long, default_value_t = limits::DEFAULT_MAX_SERVICE_SPHERES)]
     max_spheres: usize,
-    /// Time budget of one render in milliseconds, also the longest wait in the queue.
+    /// Time budget of one render in milliseconds (then 504), also the longest
+    /// wait in the queue (then 503).
     #[arg(long, default_value_t = limits::DEFAULT_RENDER_TIMEOUT_MS)]
     render_timeout_ms: u64,
     /// How long a kept-alive connection may idle between requests, in milliseconds.
@@ -62,10 +72,12 @@ impl ServeArgs {
         ServiceConfig {
             addr: self.addr.clone(),
             max_connections: self.max_connections,
+            max_connections_per_peer: self.max_connections_per_peer,
             concurrent_renders: self.renders,
             queue: self.queue,
             max_body: self.max_body,
             body_memory: self.body_memory,
+            memory_budget: self.memory_budget,
             max_pixels: self.max_pixels,
             max_samples: self.max_samples,
             max_spheres: self.max_spheres,

@@ -2,20 +2,23 @@
 //! recursion, and parallel rows.
 
 mod camera;
+mod deadline;
 mod shading;
 
 pub use camera::PixelSampler;
+pub use deadline::{CancelToken, Deadline};
 
 use crate::geometry::{Ellipsoid, Ray, Real, Vec3Ops, V3};
-use crate::index::{BruteForce, SphereIndex, VoxelHashGrid};
+use crate::index::{BruteForce, SphereIndex, VoxelHashGrid, PACKET_RAYS};
 use crate::limits;
 use crate::output::Image;
 use crate::scene::{Dialect, Scene};
+use deadline::{Stop, Stopped};
 use glam::DVec3;
 use rayon::prelude::*;
 use shading::Tracer;
 use std::fmt;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 /// Which specular highlight to use.
@@ -48,8 +51,9 @@ pub struct RenderOptions {
     /// Stop recursing once a ray's weight cannot change an 8-bit output value.
     pub adaptive_cutoff: bool,
     pub index: IndexKind,
-    /// Give up (with [`RenderError::TimedOut`]) once this instant has passed.
-    pub deadline: Option<Instant>,
+    /// Give up once this instant has passed ([`RenderError::TimedOut`]) or
+    /// its token is cancelled ([`RenderError::Cancelled`]).
+    pub deadline: Option<Deadline>,
 }
 
 impl Default for RenderOptions {
@@ -114,6 +118,8 @@ pub struct Rendered {
 pub enum RenderError {
     /// The render passed its deadline and was abandoned.
     TimedOut,
+    /// The render's cancel token was cancelled.
+    Cancelled,
     /// An option outside what the renderer accepts.
     BadOption(String),
 }
@@ -122,6 +128,7 @@ impl fmt::Display for RenderError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             RenderError::TimedOut => write!(f, "the render exceeded its time budget"),
+            RenderError::Cancelled => write!(f, "the render was cancelled"),
             RenderError::BadOption(why) => write!(f, "{why}"),
         }
     }
@@ -234,30 +241,44 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
     build_time: Duration,
     progress: Progress,
 ) -> Result<Rendered, RenderError> {
+    let stop = Stop::new(options.deadline.as_ref());
+    let at = options.deadline.as_ref().and_then(Deadline::instant);
+    let stop = &stop;
+    std::thread::scope(|s| {
+        // The timer that raises the stop flag at the deadline, so the rays
+        // never read the clock.
+        if let Some(at) = at {
+            s.spawn(move || stop.expire_at(at));
+        }
+        let rendered = trace_all(scene, shapes, index, options, build_time, progress, stop);
+        stop.end();
+        rendered
+    })
+}
+
+/// [`render_with`] under `stop`.
+fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
+    scene: &Scene,
+    shapes: &[Ellipsoid<R>],
+    index: &I,
+    options: &RenderOptions,
+    build_time: Duration,
+    progress: Progress,
+    stop: &Stop,
+) -> Result<Rendered, RenderError> {
     let started = Instant::now();
-    let tracer = Tracer::new(scene, shapes, index, options);
+    let tracer = Tracer::new(scene, shapes, index, options, stop);
     let sampler = PixelSampler::new(&scene.camera, options.spp);
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut rgb = vec![0u8; width * height * 3];
     let totals: [AtomicU64; 4] = Default::default();
     let rows_done = AtomicU32::new(0);
-    let timed_out = AtomicBool::new(false);
     rgb.par_chunks_mut(width * 3 * BAND as usize)
         .enumerate()
         .for_each(|(band, out)| {
-            // Checked before every tile, so that a costly scene stops soon
-            // after its deadline.
-            let expired = || {
-                let expired = timed_out.load(Ordering::Relaxed)
-                    || options.deadline.is_some_and(|d| Instant::now() > d);
-                if expired {
-                    timed_out.store(true, Ordering::Relaxed);
-                }
-                expired
-            };
             let mut counts = RayCounts::default();
             let rows = band as u32 * BAND..((band as u32 + 1) * BAND).min(height as u32);
-            render_band(&tracer, &sampler, rows.clone(), out, &mut counts, &expired);
+            render_band(&tracer, &sampler, rows.clone(), out, &mut counts, stop);
             for (total, n) in totals.iter().zip([
                 counts.eye,
                 counts.shadow,
@@ -268,8 +289,10 @@ pub fn render_with<R: Real, I: SphereIndex<R> + ?Sized>(
             }
             progress(rows_done.fetch_add(rows.len() as u32, Ordering::Relaxed) + rows.len() as u32);
         });
-    if timed_out.into_inner() {
-        return Err(RenderError::TimedOut);
+    match stop.outcome() {
+        Some(Stopped::TimedOut) => return Err(RenderError::TimedOut),
+        Some(Stopped::Cancelled) => return Err(RenderError::Cancelled),
+        None => {}
     }
     let [eye, shadow, reflection, refraction] = totals.map(AtomicU64::into_inner);
     Ok(Rendered {
@@ -331,7 +354,7 @@ fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
 }
 
 /// Renders the band of rows `rows` into `out`, tile by tile (see
-/// [`tiles`]), until `expired` says to stop. A tile's eye rays go to the
+/// [`tiles`]), until `stop` says to stop. A tile's eye rays go to the
 /// index together, sample by sample across its pixels (neighbouring rays,
 /// which a packet walks at once), and each pixel then combines its own
 /// samples in order, exactly as one pixel at a time would.
@@ -341,15 +364,12 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     rows: std::ops::Range<u32>,
     out: &mut [u8],
     counts: &mut RayCounts,
-    expired: &dyn Fn() -> bool,
+    stop: &Stop,
 ) {
     let width = (out.len() / 3 / rows.len()) as u32;
     let spp = sampler.spp() as usize;
     let (mut samples, mut dirs, mut hits) = (Vec::new(), Vec::new(), Vec::new());
     for pixels in tiles(width, rows.clone()) {
-        if expired() {
-            return;
-        }
         let n = pixels.len();
         // Sample-major: dirs[s·n + p] is sample s of pixel p.
         dirs.clear();
@@ -363,8 +383,13 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
         }
         hits.clear();
         hits.resize(dirs.len(), None);
-        tracer.eye_hits(&dirs, &mut hits);
+        if !eye_hits(tracer, &dirs, &mut hits, stop) {
+            return;
+        }
         for (p, &(x, y)) in pixels.iter().enumerate() {
+            if stop.now() {
+                return;
+            }
             let color = sampler.combine((0..spp).map(|s| {
                 let i = s * n + p;
                 tracer.shade_eye(dirs[i], hits[i], counts)
@@ -373,6 +398,36 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
             out[at..at + 3].copy_from_slice(&to_bytes(color));
         }
     }
+}
+
+/// The nearest hits of the eye rays `dirs` into `hits`, a packet at a time
+/// (the packets the index would cut the list into itself), checking `stop`
+/// between packets; or one ray at a time, checking between rays, once a
+/// packet has been slow. `false` if told to stop.
+fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
+    tracer: &Tracer<R, I>,
+    dirs: &[V3<R>],
+    hits: &mut [Option<crate::index::Hit<R>>],
+    stop: &Stop,
+) -> bool {
+    for (dirs, hits) in dirs.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
+        if stop.now() {
+            return false;
+        }
+        if stop.single_rays() {
+            for (&dir, hit) in dirs.iter().zip(hits) {
+                if stop.now() {
+                    return false;
+                }
+                *hit = tracer.eye_hit(dir);
+            }
+        } else {
+            let started = Instant::now();
+            tracer.eye_hits(dirs, hits);
+            stop.packet_took(started.elapsed());
+        }
+    }
+    true
 }
 
 /// Clamps to [0, 1] and quantises as the course did: `floor(255·c)`.
@@ -405,6 +460,49 @@ mod tests {
                 assert!(tile.windows(2).all(|p| order(&p[0]) < order(&p[1])));
             }
             assert!(seen.iter().all(|&n| n == 1), "{width} {rows:?}");
+        }
+    }
+
+    /// The single-ray path a slow scene switches to gives the packets'
+    /// image and counts, byte for byte.
+    #[test]
+    fn single_eye_rays_give_the_image_packets_give() {
+        let mut scenes =
+            vec![crate::scene::parse(include_bytes!("../../scenes/testSample.txt")).unwrap()];
+        scenes.extend(
+            crate::tools::report::suite::generated()
+                .into_iter()
+                .filter(|s| s.name == "gen/glass_balls")
+                .map(|s| s.scene),
+        );
+        assert_eq!(scenes.len(), 2);
+        for scene in &scenes {
+            for spp in [1, 3] {
+                let options = RenderOptions {
+                    spp,
+                    ..RenderOptions::default()
+                };
+                let shapes = shapes_of::<f32>(scene);
+                let index = build_index(&shapes, IndexKind::Grid);
+                let render = |stop: &Stop| {
+                    trace_all(
+                        scene,
+                        &shapes,
+                        &*index,
+                        &options,
+                        Duration::ZERO,
+                        &|_| {},
+                        stop,
+                    )
+                    .unwrap()
+                };
+                let packets = render(&Stop::new(None));
+                let stop = Stop::new(None);
+                stop.force_single_rays();
+                let single = render(&stop);
+                assert_eq!(packets.image, single.image, "spp {spp}");
+                assert_eq!(packets.stats.rays, single.stats.rays);
+            }
         }
     }
 

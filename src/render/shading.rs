@@ -3,6 +3,7 @@
 //! Geometry runs in the precision `R`; colours are always f64 (cheap next to
 //! the intersection work, and it keeps the f32/f64 comparison about geometry).
 
+use super::deadline::Stop;
 use super::{RayCounts, RenderOptions, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{Hit, SphereIndex};
@@ -30,6 +31,9 @@ pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     weight_norm: fn(DVec3) -> f64,
     /// What a secondary ray that meets nothing returns.
     secondary_miss: DVec3,
+    /// Checked before every shadow ray and bounce: once it is raised, they
+    /// return black and the render unwinds at once (its image is dropped).
+    stop: &'a Stop,
 }
 
 impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
@@ -38,8 +42,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         shapes: &'a [Ellipsoid<R>],
         index: &'a I,
         options: &RenderOptions,
+        stop: &'a Stop,
     ) -> Self {
-        let lights = scene
+        let lights: Vec<_> = scene
             .lights
             .iter()
             .filter(|l| l.intensity != DVec3::ZERO)
@@ -57,16 +62,21 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 (Dialect::Classic, true) => (limits::ADAPTIVE_MIN_WEIGHT, DVec3::max_element),
                 (Dialect::Classic, false) => (0.0, DVec3::max_element),
             };
+        let max_depth = match scene.dialect {
+            Dialect::Classic if !any_sphere_lit(scene, &lights) && !recurse_when_dark() => 0,
+            _ => options.depth_for(scene.dialect),
+        };
         Tracer {
             scene,
             shapes,
             index,
             lights,
-            max_depth: options.depth_for(scene.dialect),
+            max_depth,
             specular: options.specular.unwrap_or(own_specular),
             min_weight,
             weight_norm,
             secondary_miss,
+            stop,
         }
     }
 
@@ -75,6 +85,12 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     pub fn eye_hits(&self, dirs: &[V3<R>], out: &mut [Option<Hit<R>>]) {
         self.index
             .closest_hits(V3::<R>::ZERO, dirs, R::one(), R::infinity(), out);
+    }
+
+    /// [`Self::eye_hits`] for one ray.
+    pub fn eye_hit(&self, dir: V3<R>) -> Option<Hit<R>> {
+        self.index
+            .closest_hit(&Ray::new(V3::<R>::ZERO, dir), R::one(), R::infinity())
     }
 
     /// The colour seen along the eye ray with direction `dir`, whose nearest
@@ -99,6 +115,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         weight: DVec3,
         counts: &mut RayCounts,
     ) -> DVec3 {
+        if self.stop.now() {
+            return DVec3::ZERO;
+        }
         match self.index.closest_hit(ray, R::zero(), R::infinity()) {
             Some(hit) => self.shade(ray, hit, depth, weight, counts),
             None => self.secondary_miss,
@@ -158,6 +177,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             let n_dot_l = n.dot(to_light);
             if n_dot_l.is_nan() || n_dot_l <= R::zero() {
                 continue;
+            }
+            if self.stop.now() {
+                return sum;
             }
             if self.trace_shadow_ray(surface, position, counts) {
                 continue;
@@ -252,6 +274,32 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     }
 }
 
+/// Whether any sphere can send light back along a secondary ray, in the
+/// classic model, where such a ray that meets nothing returns black: an
+/// ambient term that is not zero, or a lit light and a diffuse colour or a
+/// specular term that is not. If none can, every secondary ray returns
+/// exactly zero (every term of every hit is a product with a zero), and
+/// adding it changes no bit of the image: such a scene is not recursed
+/// into at all, however deep it asks for, and only its rays' count differs.
+fn any_sphere_lit<T>(scene: &Scene, lights: &[(T, DVec3)]) -> bool {
+    scene.spheres.iter().any(|sphere| {
+        let m = &sphere.material;
+        let ambient = m.ambient * scene.ambient * m.color;
+        let direct =
+            !lights.is_empty() && (m.diffuse * m.color != DVec3::ZERO || m.specular != 0.0);
+        ambient != DVec3::ZERO || direct
+    })
+}
+
+/// Whether to recurse into a scene no light reaches all the same: only a
+/// test that checks the image does not change asks to.
+fn recurse_when_dark() -> bool {
+    #[cfg(test)]
+    return tests::FULL_RECURSION.get();
+    #[cfg(not(test))]
+    false
+}
+
 /// `d` mirrored about the unit normal `n`.
 fn reflect<R: Real>(d: V3<R>, n: V3<R>) -> V3<R> {
     d - n * (R::from_f64(2.0) * d.dot(n))
@@ -269,6 +317,12 @@ fn refract<R: Real>(d: V3<R>, n: V3<R>, ratio: R) -> Option<V3<R>> {
 mod tests {
     use super::*;
     use glam::DVec3 as V;
+
+    std::thread_local! {
+        /// Set by a test to recurse into a scene no light reaches, as if
+        /// it were lit, on the thread that starts the render.
+        pub static FULL_RECURSION: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    }
 
     #[test]
     fn refraction_bends_towards_the_normal_on_entering_and_reflects_totally_past_the_critical_angle(
@@ -288,6 +342,52 @@ mod tests {
             Some(-n),
             "head-on passes straight"
         );
+    }
+
+    #[test]
+    fn a_scene_no_light_reaches_is_not_recursed_into_and_renders_the_same() {
+        use crate::render::{render_scene, RenderOptions};
+        let dark = crate::scene::parse(
+            "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 32 32\nBACK 0.3 0.2 0.1\n\
+             SPHERE a 0 0 -4 2 2 2 1 1 1 0 0 0 1 1 1 1.5\n\
+             SPHERE b 0 0 -4 1 1 1 1 1 1 0 0 0 1 1 1 1.5\n",
+        )
+        .unwrap();
+        let render = |depth| {
+            let options = RenderOptions {
+                depth: Some(depth),
+                ..RenderOptions::default()
+            };
+            render_scene(&dark, &options, &|_| {}).unwrap()
+        };
+        let skipped = render(12);
+        assert_eq!(
+            skipped.stats.rays.reflection + skipped.stats.rays.refraction,
+            0
+        );
+        FULL_RECURSION.set(true);
+        let full = render(12);
+        FULL_RECURSION.set(false);
+        let r = full.stats.rays;
+        assert!(
+            r.reflection > 2 * r.eye && r.refraction > 2 * r.eye,
+            "{r:?}"
+        );
+        assert_eq!(skipped.image, full.image);
+        assert!(render(64).stats.render_time < std::time::Duration::from_secs(5));
+        // A light makes the same glass worth recursing into.
+        let mut lit = dark.clone();
+        lit.lights.push(crate::scene::Light {
+            position: DVec3::new(0.0, 5.0, 0.0),
+            intensity: DVec3::ONE,
+        });
+        lit.spheres[0].material.specular = 0.5;
+        let options = RenderOptions {
+            depth: Some(2),
+            ..RenderOptions::default()
+        };
+        let rays = render_scene(&lit, &options, &|_| {}).unwrap().stats.rays;
+        assert!(rays.reflection > 0 && rays.refraction > 0);
     }
 
     #[test]

@@ -3,11 +3,12 @@
 //! that is turned away at once (503) instead of piling up. Slots are given in the order the renders asked for them, so
 //! an admitted render waits for at most the renders ahead of it in the queue.
 //! And a bound on the request bodies held in memory at once, charged as their
-//! bytes arrive.
+//! bytes arrive (and to the whole memory budget).
 
+use super::memory_budget::{Charge, MemoryBudget};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::{self, Thread};
 use std::time::{Duration, Instant};
 
@@ -203,31 +204,36 @@ impl Drop for Ticket<'_> {
 
 /// The request bodies held in memory at once, in bytes: each body is
 /// charged as its bytes arrive (a client that trickles holds little) and
-/// gives its charge back when dropped.
+/// gives its charge back when dropped. Every byte is also charged to the
+/// service's whole memory budget.
 pub struct BodyBudget {
     limit: u64,
     used: AtomicU64,
+    memory: Arc<MemoryBudget>,
 }
 
 /// What one body has been charged; given back when dropped.
-pub struct Charge<'a> {
+pub struct BodyCharge<'a> {
     budget: &'a BodyBudget,
     bytes: u64,
+    memory: Charge,
 }
 
 impl BodyBudget {
-    pub fn new(limit: u64) -> Self {
+    pub fn new(limit: u64, memory: &Arc<MemoryBudget>) -> Self {
         BodyBudget {
             limit,
             used: AtomicU64::new(0),
+            memory: Arc::clone(memory),
         }
     }
 
     /// An empty charge, to grow as a body arrives.
-    pub fn charge(&self) -> Charge<'_> {
-        Charge {
+    pub fn charge(&self) -> BodyCharge<'_> {
+        BodyCharge {
             budget: self,
             bytes: 0,
+            memory: self.memory.empty(),
         }
     }
 
@@ -236,9 +242,9 @@ impl BodyBudget {
     }
 }
 
-impl Charge<'_> {
-    /// Charges `bytes` more; `false` (and nothing charged) if the budget
-    /// cannot take them.
+impl BodyCharge<'_> {
+    /// Charges `bytes` more; `false` (and nothing charged) if the bodies'
+    /// budget or the whole memory budget cannot take them.
     pub fn grow(&mut self, bytes: u64) -> bool {
         let budget = self.budget;
         let taken = budget
@@ -247,14 +253,19 @@ impl Charge<'_> {
                 used.checked_add(bytes)
                     .filter(|&total| total <= budget.limit)
             });
-        if taken.is_ok() {
-            self.bytes += bytes;
+        if taken.is_err() {
+            return false;
         }
-        taken.is_ok()
+        if !self.memory.grow(bytes) {
+            budget.used.fetch_sub(bytes, Ordering::Relaxed);
+            return false;
+        }
+        self.bytes += bytes;
+        true
     }
 }
 
-impl Drop for Charge<'_> {
+impl Drop for BodyCharge<'_> {
     fn drop(&mut self) {
         self.budget.used.fetch_sub(self.bytes, Ordering::Relaxed);
     }
@@ -433,7 +444,8 @@ mod tests {
 
     #[test]
     fn bodies_are_charged_up_to_the_budget_and_give_it_back() {
-        let budget = BodyBudget::new(100);
+        let memory = MemoryBudget::new(1000, 0);
+        let budget = BodyBudget::new(100, &memory);
         let mut a = budget.charge();
         assert!(a.grow(60));
         let mut b = budget.charge();
@@ -443,7 +455,19 @@ mod tests {
         drop(a);
         assert_eq!(budget.used(), 40);
         assert!(b.grow(60));
+        assert_eq!(memory.used(), 100);
         drop(b);
-        assert_eq!(budget.used(), 0);
+        assert_eq!((budget.used(), memory.used()), (0, 0));
+    }
+
+    #[test]
+    fn a_body_is_also_held_to_the_whole_memory_budget() {
+        let memory = MemoryBudget::new(50, 0);
+        let budget = BodyBudget::new(100, &memory);
+        let mut a = budget.charge();
+        assert!(a.grow(40));
+        assert!(!a.grow(20));
+        // The refused bytes are charged to neither.
+        assert_eq!((budget.used(), memory.used()), (40, 40));
     }
 }

@@ -1,7 +1,7 @@
 //! One client connection, from accept to close: requests in turn on the
 //! kept-alive connection, each read, answered and counted.
 
-use super::error::ApiError;
+use super::error::{ApiError, ApiErrorKind};
 use super::http::{self, BodyFraming, Connection, ReadError, RequestHead, Response};
 use super::registry::Slot;
 use super::routes;
@@ -37,28 +37,62 @@ pub fn serve(state: &State, slot: &Slot, stream: Arc<TcpStream>, accepted: Insta
     }
 }
 
+/// Serves one request on a connection in the reserve (past the connection
+/// cap or its peer's): `/healthz` and `/metrics` are answered, anything
+/// else, or nothing within the reserve's deadline, gets `refusal`; then the
+/// connection closes.
+pub fn serve_reserve(
+    state: &State,
+    slot: &Slot,
+    stream: Arc<TcpStream>,
+    accepted: Instant,
+    refusal: ApiErrorKind,
+) {
+    let mut conn = Connection::new(stream, accepted);
+    let timeout = std::time::Duration::from_millis(crate::limits::RESERVE_HEAD_TIMEOUT_MS);
+    let timeouts = http::Timeouts {
+        idle: timeout,
+        head: timeout,
+    };
+    let head = match conn.read_head(&timeouts) {
+        Ok(head) => head,
+        Err(ReadError::Io) => return,
+        Err(_) => {
+            let response = ApiError::from(refusal).into_response(false);
+            state.metrics.response("connection", &response);
+            let _ = write_response(state, &conn, &response, false, false);
+            return;
+        }
+    };
+    slot.request_received();
+    let route = routes::label(&head.path);
+    let bodiless = matches!(
+        head.body_framing(),
+        BodyFraming::Absent | BodyFraming::Length(0)
+    );
+    let answered = if bodiless && routes::answered_from_reserve(&head) {
+        routes::dispatch(state, &conn, &head, None).ok().flatten()
+    } else {
+        None
+    };
+    let response =
+        answered.unwrap_or_else(|| ApiError::from(refusal).into_response(head.accepts_json()));
+    state.metrics.response(route, &response);
+    let _ = write_response(state, &conn, &response, head.method == "HEAD", false);
+}
+
 /// No request could be read: say why, if there is anyone to tell, in plain
 /// text (there are no headers to ask for JSON), and close.
 fn refuse(state: &State, conn: &Connection, error: ReadError) {
-    let error = match error {
+    let kind = match error {
         ReadError::Closed | ReadError::Io => return,
-        ReadError::Stalled => {
-            ApiError::new(408, "request_timeout", "the request did not arrive in time")
-        }
-        ReadError::HeadTooLarge => ApiError::new(
-            431,
-            "head_too_large",
-            format!(
-                "the request head exceeds {} bytes or {} header lines",
-                crate::limits::MAX_HEAD_BYTES,
-                crate::limits::MAX_HEADERS
-            ),
-        ),
-        ReadError::Malformed(why) => ApiError::new(400, "bad_request", why),
-        ReadError::OverBudget => busy(),
+        ReadError::Stalled => ApiErrorKind::RequestTimeout { what: "request" },
+        ReadError::HeadTooLarge => ApiErrorKind::HeadTooLarge,
+        ReadError::Malformed(why) => ApiErrorKind::BadRequest(why),
+        ReadError::OverBudget => ApiErrorKind::BodyMemory,
     };
-    state.metrics.request("other", error.status);
-    let response = error.into_response(false);
+    let response = ApiError::from(kind).into_response(false);
+    state.metrics.response("other", &response);
     let _ = write_response(state, conn, &response, false, false);
 }
 
@@ -92,7 +126,7 @@ fn answer(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
             false
         }
         Step::Reply { response, keep } => {
-            state.metrics.request(route, response.status);
+            state.metrics.response(route, &response);
             let keep = keep && head.wants_keep_alive() && !state.stopping();
             let written = write_response(state, conn, &response, head.method == "HEAD", keep);
             written.is_ok() && keep
@@ -103,19 +137,15 @@ fn answer(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
 /// Reads the body the head announces, then routes the request.
 fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead) -> Step {
     let json = head.accepts_json();
-    let fail = |error: ApiError, keep: bool| Step::Reply {
-        response: error.into_response(json),
+    let fail = |kind: ApiErrorKind, keep: bool| Step::Reply {
+        response: ApiError::from(kind).into_response(json),
         keep,
     };
     let length = match head.body_framing() {
         BodyFraming::Length(n) => n,
         BodyFraming::Absent if head.method == "POST" => {
             return fail(
-                ApiError::new(
-                    411,
-                    "length_required",
-                    "a POST needs a Content-Length header",
-                ),
+                ApiErrorKind::LengthRequired("a POST needs a Content-Length header"),
                 true,
             )
         }
@@ -123,9 +153,7 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         // The body's end cannot be found, so the connection cannot be reused.
         BodyFraming::Encoded => {
             return fail(
-                ApiError::new(
-                    411,
-                    "length_required",
+                ApiErrorKind::LengthRequired(
                     "Transfer-Encoding is not supported; send the body with a Content-Length",
                 ),
                 false,
@@ -133,11 +161,7 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         }
         BodyFraming::Invalid => {
             return fail(
-                ApiError::new(
-                    400,
-                    "bad_request",
-                    "Content-Length is not a single whole number",
-                ),
+                ApiErrorKind::BadRequest("Content-Length is not a single whole number".into()),
                 false,
             )
         }
@@ -147,11 +171,10 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         // Decided from the header alone: the body is never read, so the
         // connection cannot be reused.
         return fail(
-            ApiError::new(
-                413,
-                "body_too_large",
-                format!("the body has {length} bytes; at most {max_body} are accepted"),
-            ),
+            ApiErrorKind::BodyTooLarge {
+                length,
+                max: max_body,
+            },
             false,
         );
     }
@@ -174,25 +197,19 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
         Ok(scene) => scene.map(|text| (text, charge)),
         Err(ReadError::Stalled) => {
             return fail(
-                ApiError::new(
-                    408,
-                    "request_timeout",
-                    "the request body did not arrive in time",
-                ),
+                ApiErrorKind::RequestTimeout {
+                    what: "request body",
+                },
                 false,
             )
         }
-        Err(ReadError::OverBudget) => return fail(busy(), true),
+        Err(ReadError::OverBudget) => return fail(ApiErrorKind::BodyMemory, true),
         Err(_) => return Step::Gone,
     };
     slot.request_received();
     if head.minor_version >= 1 && head.header("host").is_none() {
         return fail(
-            ApiError::new(
-                400,
-                "bad_request",
-                "an HTTP/1.1 request needs a Host header",
-            ),
+            ApiErrorKind::BadRequest("an HTTP/1.1 request needs a Host header".into()),
             true,
         );
     }
@@ -202,10 +219,9 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
             keep: true,
         },
         Ok(None) => Step::Gone,
-        Err(error) => fail(error, true),
+        Err(error) => Step::Reply {
+            response: error.into_response(json),
+            keep: true,
+        },
     }
-}
-
-fn busy() -> ApiError {
-    ApiError::busy(crate::limits::RETRY_AFTER_S)
 }

@@ -2,8 +2,10 @@
 //! deadlines, and writing a response. Framing only; what a request means is
 //! decided in `routes`.
 
-use super::admission::Charge;
+use super::admission::BodyCharge;
+use super::memory_budget::Charge;
 use crate::limits;
+use std::cell::Cell;
 use std::fmt::Write as _;
 use std::io::{self, IoSlice, Read, Write};
 use std::net::TcpStream;
@@ -19,6 +21,9 @@ const BODY_CHUNK: usize = 64 * 1024;
 /// Bytes handed to the socket per write of a response, so that the time
 /// left is judged between writes.
 const WRITE_CHUNK: usize = 64 * 1024;
+/// How long the `100 Continue` that tells a half-closed client from a
+/// departed one may take to write: it is a few bytes into an empty buffer.
+const PROBE_WRITE: Duration = Duration::from_millis(100);
 /// The shortest socket read or write timeout (std refuses zero, which to
 /// the OS means none at all).
 const MIN_SOCKET_TIMEOUT: Duration = Duration::from_millis(1);
@@ -155,6 +160,11 @@ pub struct Connection {
     /// Since when the connection has been ready for its next request: its
     /// accept, then the end of each response.
     ready_since: Instant,
+    /// A `100 Continue` has gone out to tell a half-closed client from a
+    /// departed one (see [`Connection::client_gone`]).
+    probed: Cell<bool>,
+    /// The client was found gone.
+    gone: Cell<bool>,
 }
 
 impl Connection {
@@ -163,12 +173,15 @@ impl Connection {
             stream,
             pending: Vec::new(),
             ready_since: accepted,
+            probed: Cell::new(false),
+            gone: Cell::new(false),
         }
     }
 
     /// Marks the end of a response: the idle clock starts again.
     pub fn request_done(&mut self) {
         self.ready_since = Instant::now();
+        self.probed.set(false);
     }
 
     /// Reads the next request head: its first byte within `timeouts.idle`
@@ -237,7 +250,7 @@ impl Connection {
         &mut self,
         len: usize,
         timeout: Duration,
-        charge: &mut Charge,
+        charge: &mut BodyCharge,
     ) -> Result<Vec<u8>, ReadError> {
         let deadline = Instant::now() + timeout;
         let mut body = Vec::new();
@@ -316,23 +329,68 @@ impl Connection {
         Ok(n)
     }
 
-    /// Whether the client has closed its end (or reset it). Pipelined bytes
-    /// or nothing to read mean it is still there.
-    pub fn peer_closed(&self) -> bool {
-        if self.stream.set_nonblocking(true).is_err() {
-            return false;
+    /// Whether the client has left: reset the connection, or closed it
+    /// altogether. An end of stream alone does not say so: a client that
+    /// shut down only its sending side (after its request, as many do) still
+    /// waits for the answer. So the first time the end is seen, a `100
+    /// Continue` goes out, which an HTTP/1.1 client must take and skip
+    /// (RFC 9110 §15.2) whether it expected one or not; a client that closed
+    /// its socket answers it with a reset, seen at a later call. Without
+    /// `may_probe` (an HTTP/1.0 client, which must not be sent a 1xx) an end
+    /// of stream is taken as a half-close. Pipelined bytes or nothing to
+    /// read mean it is still there.
+    pub fn client_gone(&self, may_probe: bool) -> bool {
+        if self.gone.get() {
+            return true;
         }
-        let mut probe = [0u8; 1];
-        let closed = match self.stream.peek(&mut probe) {
-            Ok(0) => true,
-            Ok(_) => false,
-            Err(e) => {
-                e.kind() != io::ErrorKind::WouldBlock && e.kind() != io::ErrorKind::Interrupted
+        let gone = match self.peek_end() {
+            End::Open => false,
+            End::Reset => true,
+            End::Closed if self.stream.take_error().ok().flatten().is_some() => true,
+            End::Closed if !may_probe || self.probed.get() => false,
+            End::Closed => {
+                self.probed.set(true);
+                let soon = Instant::now() + PROBE_WRITE;
+                write_before(&self.stream, CONTINUE, &[], soon).is_err()
             }
         };
-        let _ = self.stream.set_nonblocking(false);
-        closed
+        self.gone.set(gone);
+        gone
     }
+
+    /// What a non-blocking peek finds at the connection's receiving end.
+    fn peek_end(&self) -> End {
+        if self.stream.set_nonblocking(true).is_err() {
+            return End::Open;
+        }
+        let mut probe = [0u8; 1];
+        let end = match self.stream.peek(&mut probe) {
+            Ok(0) => End::Closed,
+            Ok(_) => End::Open,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+                ) =>
+            {
+                End::Open
+            }
+            Err(_) => End::Reset,
+        };
+        let _ = self.stream.set_nonblocking(false);
+        end
+    }
+}
+
+/// The receiving end of a connection, as a peek finds it.
+enum End {
+    /// Bytes to read, or none yet.
+    Open,
+    /// The end of the stream: the client closed its socket, or only its
+    /// sending side.
+    Closed,
+    /// Reset, or another error.
+    Reset,
 }
 
 fn is_timeout(e: &io::Error) -> bool {
@@ -374,6 +432,11 @@ pub struct Response {
     pub status: u16,
     pub headers: Vec<(&'static str, String)>,
     pub body: Vec<u8>,
+    /// The kind of error it reports, if it is one (counted in `/metrics`).
+    pub error: Option<&'static str>,
+    /// The body's charge against the memory budget, given back once the
+    /// response has been written (or given up on) and dropped.
+    pub hold: Option<Charge>,
 }
 
 impl Response {
@@ -382,6 +445,8 @@ impl Response {
             status,
             headers: vec![("Content-Type", content_type.to_owned())],
             body: body.into(),
+            error: None,
+            hold: None,
         }
     }
 

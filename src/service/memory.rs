@@ -30,7 +30,7 @@ use std::time::Duration;
 const QUIET: Duration = Duration::from_millis(500);
 
 /// Gives the free pages of every malloc arena back to the system.
-fn trim() {
+pub(super) fn trim() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim takes each arena's lock while it works (glibc
     // documents it as MT-Safe), and it only returns pages of free chunks.

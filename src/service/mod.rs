@@ -8,8 +8,13 @@
 //! on the shared rayon pool. A slow or idle client so costs one parked thread
 //! until its deadline, never a place another client's render waits for.
 //! Every wait has a deadline and every buffer a bound, so no client can make
-//! the service grow without limit; once it is quiet, the memory its requests
-//! freed is given back to the system ([`memory`]).
+//! the service grow without limit: a render stops within one ray's walk of
+//! its time budget or of its client leaving ([`render_route`]); bodies,
+//! scenes, framebuffers and encoded images are charged to one memory budget
+//! before they are allocated ([`memory_budget`]); one peer holds at most its
+//! share of the connections, and a reserve keeps `/healthz` answered
+//! ([`registry`]). Once the service is quiet, the memory its requests freed
+//! is given back to the system ([`memory`]).
 
 mod admission;
 mod assets;
@@ -17,6 +22,7 @@ mod connection;
 mod error;
 mod http;
 mod memory;
+mod memory_budget;
 mod metrics;
 mod registry;
 mod render_route;
@@ -24,8 +30,10 @@ mod routes;
 
 use crate::limits;
 use admission::{Admission, BodyBudget};
+use error::{ApiError, ApiErrorKind};
+use memory_budget::MemoryBudget;
 use metrics::Metrics;
-use registry::Registry;
+use registry::{Caps, Over, Place, Registry};
 use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::{self, AssertUnwindSafe};
@@ -48,10 +56,13 @@ const TURN_AWAY_WRITE: Duration = Duration::from_millis(100);
 pub struct ServiceConfig {
     pub addr: String,
     pub max_connections: usize,
+    pub max_connections_per_peer: usize,
     pub concurrent_renders: usize,
     pub queue: usize,
     pub max_body: u64,
     pub body_memory: u64,
+    /// Everything requests make the service hold, and its resident set.
+    pub memory_budget: u64,
     pub max_pixels: u64,
     pub max_samples: u64,
     pub max_spheres: usize,
@@ -70,10 +81,12 @@ impl Default for ServiceConfig {
         ServiceConfig {
             addr: limits::DEFAULT_ADDR.to_owned(),
             max_connections: limits::DEFAULT_MAX_CONNECTIONS,
+            max_connections_per_peer: limits::DEFAULT_MAX_CONNECTIONS_PER_PEER,
             concurrent_renders: limits::DEFAULT_CONCURRENT_RENDERS,
             queue: limits::DEFAULT_QUEUE,
             max_body: limits::DEFAULT_MAX_BODY,
             body_memory: limits::DEFAULT_BODY_MEMORY,
+            memory_budget: limits::DEFAULT_MEMORY_BUDGET,
             max_pixels: limits::DEFAULT_MAX_PIXELS,
             max_samples: limits::DEFAULT_MAX_SAMPLES,
             max_spheres: limits::DEFAULT_MAX_SERVICE_SPHERES,
@@ -95,11 +108,25 @@ impl ServiceConfig {
         }
     }
 
+    fn caps(&self) -> Caps {
+        Caps {
+            total: self.max_connections,
+            per_peer: self.max_connections_per_peer,
+            reserve: limits::HEALTH_RESERVE_CONNECTIONS,
+        }
+    }
+
     fn check(&self) -> io::Result<()> {
         let invalid =
             |what: &str| Err(io::Error::new(io::ErrorKind::InvalidInput, what.to_owned()));
         if self.max_connections == 0 {
             return invalid("--max-connections must be at least 1");
+        }
+        if self.max_connections_per_peer == 0 {
+            return invalid("--max-connections-per-peer must be at least 1");
+        }
+        if self.memory_budget < self.max_body {
+            return invalid("--memory-budget must be at least --max-body");
         }
         if self.concurrent_renders == 0 {
             return invalid("--renders must be at least 1");
@@ -119,6 +146,7 @@ pub(crate) struct State {
     config: ServiceConfig,
     metrics: Metrics,
     admission: Admission,
+    memory: Arc<MemoryBudget>,
     bodies: BodyBudget,
     pool: rayon::ThreadPool,
     connections: Registry,
@@ -154,9 +182,22 @@ impl Server {
             .thread_name(|i| format!("voxtrace-render-{i}"))
             .build()
             .map_err(io::Error::other)?;
+        // Measured once the pool's threads exist: what the service holds idle.
+        let baseline = memory_budget::resident_bytes().unwrap_or(0);
+        if config.memory_budget < baseline + config.max_body {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "--memory-budget must be at least {} bytes: the service's own {baseline} resident bytes and one --max-body",
+                    baseline + config.max_body
+                ),
+            ));
+        }
+        let memory = MemoryBudget::new(config.memory_budget, baseline);
         let state = State {
             admission: Admission::new(config.concurrent_renders, config.queue),
-            bodies: BodyBudget::new(config.body_memory),
+            bodies: BodyBudget::new(config.body_memory, &memory),
+            memory,
             config,
             metrics: Metrics::default(),
             pool,
@@ -198,27 +239,38 @@ impl Server {
         Ok(())
     }
 
-    /// Gives an accepted connection its reader thread, or turns it away
-    /// when the cap is reached (or no thread can be started).
+    /// Gives an accepted connection its reader thread, in a regular place
+    /// or in the reserve, or turns it away when both are full (or no
+    /// thread can be started).
     fn admit(&self, stream: TcpStream) {
         let state = &self.state;
         let accepted = Instant::now();
         state.metrics.connection_opened();
+        let Ok(peer) = stream.peer_addr() else {
+            // Reset before it could be served.
+            return state.metrics.connection_closed();
+        };
         let stream = Arc::new(stream);
-        let cap = state.config.max_connections;
-        let Ok(id) = state.connections.open(Arc::clone(&stream), cap) else {
-            return turn_away(state, &stream);
+        let caps = state.config.caps();
+        let (id, place) = match state.connections.open(Arc::clone(&stream), peer.ip(), caps) {
+            Ok(registered) => registered,
+            Err(registry::Refused::Full(over)) => {
+                return turn_away(state, &stream, over_limit(&state.config, over))
+            }
+            Err(registry::Refused::Stopping) => {
+                return turn_away(state, &stream, over_limit(&state.config, Over::Total))
+            }
         };
         let shared = Arc::clone(state);
         let reader = Arc::clone(&stream);
         let spawned = thread::Builder::new()
             .name("voxtrace-conn".into())
             .stack_size(CONNECTION_STACK_BYTES)
-            .spawn(move || serve_connection(&shared, id, reader, accepted));
+            .spawn(move || serve_connection(&shared, id, place, reader, accepted));
         if spawned.is_err() {
             // The thread never ran: end the connection's registration here.
             drop(state.connections.slot(id));
-            turn_away(state, &stream);
+            turn_away(state, &stream, over_limit(&state.config, Over::Total));
         }
     }
 
@@ -237,14 +289,36 @@ impl Server {
     }
 }
 
+/// The refusal for a connection over the cap `over`.
+fn over_limit(config: &ServiceConfig, over: Over) -> ApiErrorKind {
+    match over {
+        Over::Total => ApiErrorKind::ConnectionLimit {
+            max: config.max_connections,
+        },
+        Over::PerPeer => ApiErrorKind::PeerLimit {
+            max: config.max_connections_per_peer,
+        },
+    }
+}
+
 /// One connection's reader thread, from accept to close.
-fn serve_connection(state: &State, id: u64, stream: Arc<TcpStream>, accepted: Instant) {
+fn serve_connection(
+    state: &State,
+    id: u64,
+    place: Place,
+    stream: Arc<TcpStream>,
+    accepted: Instant,
+) {
     let slot = state.connections.slot(id);
     // A bug that panics while serving one connection ends that connection
     // only. Its registration, admission ticket and counters are released by
     // their destructors during the unwind.
-    let served = panic::catch_unwind(AssertUnwindSafe(|| {
-        connection::serve(state, &slot, stream, accepted)
+    let served = panic::catch_unwind(AssertUnwindSafe(|| match place {
+        Place::Regular => connection::serve(state, &slot, stream, accepted),
+        Place::Reserve(over) => {
+            let refusal = over_limit(&state.config, over);
+            connection::serve_reserve(state, &slot, stream, accepted, refusal)
+        }
     }));
     if served.is_err() {
         state.metrics.request("panic", 500);
@@ -253,13 +327,12 @@ fn serve_connection(state: &State, id: u64, stream: Arc<TcpStream>, accepted: In
     state.metrics.connection_closed();
 }
 
-/// Too many connections are open: say so and close, at once.
-fn turn_away(state: &State, stream: &TcpStream) {
-    let response = error::ApiError::new(503, "busy", "too many connections are open")
-        .with_header("Retry-After", limits::RETRY_AFTER_S.to_string())
-        .into_response(false);
+/// Too many connections are open, the reserve's places included: say why
+/// and close, at once.
+fn turn_away(state: &State, stream: &TcpStream, why: ApiErrorKind) {
+    let response = ApiError::from(why).into_response(false);
     let _ = response.write_to(stream, false, false, Instant::now() + TURN_AWAY_WRITE);
-    state.metrics.request("connection", 503);
+    state.metrics.response("connection", &response);
     state.metrics.connection_closed();
 }
 

@@ -1,5 +1,12 @@
-//! The open connections: how many there are (the connection cap), and which
-//! are waiting for a request, so that a stopping server can wake them.
+//! The open connections: how many there are (the connection cap), how many
+//! each peer address holds (the per-peer cap), which are in the reserve
+//! kept for health checks, and which are waiting for a request, so that a
+//! stopping server can wake them.
+//!
+//! A connection past either cap is not turned away at once while the
+//! reserve has room: it may still ask for `/healthz` or `/metrics` (and is
+//! told why anything else is refused), so one client holding every place it
+//! may hold cannot make the service look dead to its monitors.
 //!
 //! Each connection's reader thread blocks in a socket read whose timeout is
 //! its own deadline, so nothing polls. To stop, the server shuts down the
@@ -8,7 +15,7 @@
 //! request is being handled is left alone and closes after its answer.
 
 use std::collections::HashMap;
-use std::net::{Shutdown, TcpStream};
+use std::net::{IpAddr, Shutdown, TcpStream};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 
 #[derive(Default)]
@@ -22,6 +29,11 @@ pub struct Registry {
 struct Inner {
     next_id: u64,
     open: HashMap<u64, Entry>,
+    /// Connections outside the reserve, in all and by peer address.
+    regular: usize,
+    by_peer: HashMap<IpAddr, usize>,
+    /// Connections in the reserve.
+    reserved: usize,
     stopping: bool,
 }
 
@@ -29,13 +41,41 @@ struct Entry {
     stream: Arc<TcpStream>,
     /// Waiting for or reading a request (as opposed to handling one).
     receiving: bool,
+    /// Counted against its peer, or in the reserve.
+    peer: Option<IpAddr>,
+}
+
+/// How many connections may be open.
+#[derive(Clone, Copy, Debug)]
+pub struct Caps {
+    /// In all, outside the reserve.
+    pub total: usize,
+    /// From one peer address, outside the reserve.
+    pub per_peer: usize,
+    /// In the reserve, past either cap.
+    pub reserve: usize,
+}
+
+/// Where a registered connection was given a place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Place {
+    Regular,
+    /// In the reserve, because of this cap.
+    Reserve(Over),
+}
+
+/// Which cap a connection is over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Over {
+    Total,
+    PerPeer,
 }
 
 /// Why a connection was not registered.
 #[derive(Debug, PartialEq, Eq)]
 pub enum Refused {
-    /// `cap` connections are open already.
-    Full,
+    /// Over this cap, and the reserve is full too.
+    Full(Over),
     /// The server is stopping.
     Stopping,
 }
@@ -47,25 +87,50 @@ pub struct Slot<'a> {
 }
 
 impl Registry {
-    /// Registers a connection unless `cap` are open already.
-    pub fn open(&self, stream: Arc<TcpStream>, cap: usize) -> Result<u64, Refused> {
+    /// Registers a connection from `peer`: a regular place while both caps
+    /// allow, else a place in the reserve while it has room.
+    pub fn open(
+        &self,
+        stream: Arc<TcpStream>,
+        peer: IpAddr,
+        caps: Caps,
+    ) -> Result<(u64, Place), Refused> {
         let mut inner = self.lock();
         if inner.stopping {
             return Err(Refused::Stopping);
         }
-        if inner.open.len() >= cap {
-            return Err(Refused::Full);
-        }
+        let from_peer = inner.by_peer.get(&peer).copied().unwrap_or(0);
+        let over = if inner.regular >= caps.total {
+            Some(Over::Total)
+        } else if from_peer >= caps.per_peer {
+            Some(Over::PerPeer)
+        } else {
+            None
+        };
+        let place = match over {
+            None => {
+                inner.regular += 1;
+                *inner.by_peer.entry(peer).or_default() += 1;
+                Place::Regular
+            }
+            Some(over) if inner.reserved < caps.reserve => {
+                inner.reserved += 1;
+                Place::Reserve(over)
+            }
+            Some(over) => return Err(Refused::Full(over)),
+        };
         let id = inner.next_id;
         inner.next_id += 1;
+        let peer = (place == Place::Regular).then_some(peer);
         inner.open.insert(
             id,
             Entry {
                 stream,
                 receiving: true,
+                peer,
             },
         );
-        Ok(id)
+        Ok((id, place))
     }
 
     /// Takes charge of a registered connection: it leaves when the slot is dropped.
@@ -76,6 +141,11 @@ impl Registry {
     #[cfg(test)]
     fn len(&self) -> usize {
         self.lock().open.len()
+    }
+
+    #[cfg(test)]
+    fn held_by(&self, peer: IpAddr) -> usize {
+        self.lock().by_peer.get(&peer).copied().unwrap_or(0)
     }
 
     /// Refuses new connections, wakes every connection waiting for a
@@ -123,9 +193,30 @@ impl Slot<'_> {
     }
 }
 
+impl Inner {
+    fn close(&mut self, id: u64) {
+        let Some(entry) = self.open.remove(&id) else {
+            return;
+        };
+        let Some(peer) = entry.peer else {
+            self.reserved -= 1;
+            return;
+        };
+        self.regular -= 1;
+        if let Some(n) = self.by_peer.get_mut(&peer) {
+            *n -= 1;
+            if *n == 0 {
+                // Forgotten once it holds nothing: the map never outgrows
+                // the open connections.
+                self.by_peer.remove(&peer);
+            }
+        }
+    }
+}
+
 impl Drop for Slot<'_> {
     fn drop(&mut self) {
-        self.registry.lock().open.remove(&self.id);
+        self.registry.lock().close(self.id);
         self.registry.left.notify_all();
     }
 }
@@ -143,18 +234,54 @@ mod tests {
         (Arc::new(server), client)
     }
 
+    const HOME: IpAddr = IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
+    const AWAY: IpAddr = IpAddr::V4(std::net::Ipv4Addr::new(127, 0, 0, 2));
+
+    fn caps(total: usize, per_peer: usize, reserve: usize) -> Caps {
+        Caps {
+            total,
+            per_peer,
+            reserve,
+        }
+    }
+
     #[test]
     fn the_cap_counts_open_connections_and_a_dropped_slot_frees_its_place() {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let registry = Registry::default();
         let (a, _ca) = pair(&listener);
         let (b, _cb) = pair(&listener);
-        let first = registry.open(a, 1).unwrap();
-        assert_eq!(registry.open(Arc::clone(&b), 1), Err(Refused::Full));
+        let (first, place) = registry.open(a, HOME, caps(1, 1, 0)).unwrap();
+        assert_eq!(place, Place::Regular);
+        assert_eq!(
+            registry.open(Arc::clone(&b), AWAY, caps(1, 1, 0)),
+            Err(Refused::Full(Over::Total))
+        );
         assert_eq!(registry.len(), 1);
         drop(registry.slot(first));
         assert_eq!(registry.len(), 0);
-        assert!(registry.open(b, 1).is_ok());
+        assert!(registry.open(b, HOME, caps(1, 1, 0)).is_ok());
+    }
+
+    #[test]
+    fn a_peer_at_its_cap_goes_to_the_reserve_and_others_keep_their_places() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let registry = Registry::default();
+        let caps = caps(4, 2, 1);
+        let streams: Vec<_> = (0..5).map(|_| pair(&listener)).collect();
+        let open = |i: usize, peer| registry.open(Arc::clone(&streams[i].0), peer, caps);
+        let (a, _) = open(0, HOME).unwrap();
+        open(1, HOME).unwrap();
+        let (reserved, place) = open(2, HOME).unwrap();
+        assert_eq!(place, Place::Reserve(Over::PerPeer));
+        // The reserve is full; this peer is turned away, another is not.
+        assert_eq!(open(3, HOME), Err(Refused::Full(Over::PerPeer)));
+        assert_eq!(open(3, AWAY).unwrap().1, Place::Regular);
+        assert_eq!((registry.held_by(HOME), registry.held_by(AWAY)), (2, 1));
+        drop(registry.slot(reserved));
+        drop(registry.slot(a));
+        assert_eq!(registry.held_by(HOME), 1);
+        assert_eq!(open(4, HOME).unwrap().1, Place::Regular);
     }
 
     #[test]
@@ -163,8 +290,11 @@ mod tests {
         let registry = Registry::default();
         let (waiting, _client_w) = pair(&listener);
         let (busy, _client_b) = pair(&listener);
-        let waiting_id = registry.open(Arc::clone(&waiting), 8).unwrap();
-        let busy_id = registry.open(busy, 8).unwrap();
+        let waiting_id = registry
+            .open(Arc::clone(&waiting), HOME, caps(8, 8, 0))
+            .unwrap()
+            .0;
+        let busy_id = registry.open(busy, HOME, caps(8, 8, 0)).unwrap().0;
         std::thread::scope(|s| {
             s.spawn(|| {
                 // Registered as waiting for a request: blocks until the stop
@@ -186,6 +316,9 @@ mod tests {
             assert_eq!(registry.len(), 0);
         });
         let (late, _client_l) = pair(&listener);
-        assert_eq!(registry.open(late, 8), Err(Refused::Stopping));
+        assert_eq!(
+            registry.open(late, HOME, caps(8, 8, 0)),
+            Err(Refused::Stopping)
+        );
     }
 }

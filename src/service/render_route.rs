@@ -1,18 +1,27 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
-use super::admission::{Charge, Refused};
-use super::error::ApiError;
-use super::http::{Connection, Response};
+use super::admission::{BodyCharge, Refused};
+use super::error::{ApiError, ApiErrorKind};
+use super::http::{Connection, RequestHead, Response};
+use super::memory_budget::{resident_bytes, Charge};
 use super::{ServiceConfig, State};
 use crate::limits;
 use crate::output::Format;
-use crate::render::{render_scene, RenderError, RenderOptions};
+use crate::render::{render_scene, CancelToken, Deadline, RenderError, RenderOptions, Rendered};
 use crate::scene::{self, Scene};
+use std::panic::{self, AssertUnwindSafe};
+use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 /// How often a render waiting in the queue checks that its client is still
 /// there; one that left gives its place back within this time.
 const QUEUE_POLL: Duration = Duration::from_millis(100);
+/// How often a running render checks that its client is still there; one
+/// that left has its render stopped within this time (and one ray's walk).
+const CLIENT_POLL: Duration = Duration::from_millis(100);
+/// How long after cancelling a render its answer may wait for the render to
+/// return: the bound on a stopped render's overshoot that the service states.
+const STOP_GRACE: Duration = Duration::from_millis(100);
 
 /// The figures of a render, sent as headers and exposed to scripts.
 const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height";
@@ -69,7 +78,7 @@ fn number(key: &str, value: &str, low: u32, high: u32) -> Result<u32, ApiError> 
 }
 
 fn bad_query(message: String) -> ApiError {
-    ApiError::new(400, "query", message)
+    ApiErrorKind::Query(message).into()
 }
 
 /// A scene that parses but is more than this service renders: 422.
@@ -79,7 +88,7 @@ fn check_limits(
     config: &ServiceConfig,
 ) -> Result<(), ApiError> {
     let pixels = u64::from(scene.camera.width) * u64::from(scene.camera.height);
-    let too_much = |what: String| Err(ApiError::new(422, "limit", what));
+    let too_much = |what: String| Err(ApiErrorKind::Limit(what).into());
     if pixels > config.max_pixels {
         return too_much(format!(
             "the image has {pixels} pixels ({}×{}); this service renders at most {}",
@@ -131,30 +140,42 @@ fn download_name(scene: &Scene, format: Format) -> String {
 }
 
 /// Renders the scene of `body`, which `charge` holds against the body
-/// budget. `None` means the client left while the render waited, so there
-/// is nobody to answer.
+/// budget. `None` means the client left while the render waited or ran, so
+/// there is nobody to answer.
 pub fn handle(
     state: &State,
     conn: &Connection,
-    query: &str,
+    head: &RequestHead,
     body: Vec<u8>,
-    charge: Charge,
+    charge: BodyCharge,
 ) -> Result<Option<Response>, ApiError> {
     let config = &state.config;
-    let busy = |_| ApiError::busy(limits::RETRY_AFTER_S);
-    let query = RenderQuery::parse(query)?;
-    let place = state.admission.reserve().map_err(busy)?;
+    let query = RenderQuery::parse(&head.query)?;
+    let place = state
+        .admission
+        .reserve()
+        .map_err(|_| ApiError::from(ApiErrorKind::QueueFull))?;
     // A client that leaves while its request waits for a slot gives its
     // place back then, and its scene is neither parsed nor rendered.
-    let deadline = Instant::now() + config.render_timeout;
-    let ticket = match place.enter(deadline, QUEUE_POLL, || conn.peer_closed()) {
+    let may_probe = head.minor_version >= 1;
+    let queued = Instant::now();
+    let deadline = queued + config.render_timeout;
+    let ticket = match place.enter(deadline, QUEUE_POLL, || conn.client_gone(may_probe)) {
         Ok(ticket) => ticket,
         Err(Refused::Abandoned) => {
             state.metrics.render_abandoned();
             return Ok(None);
         }
-        Err(refused) => return Err(busy(refused)),
+        Err(Refused::QueueFull) => return Err(ApiErrorKind::QueueFull.into()),
+        Err(Refused::WaitedTooLong) => {
+            return Err(ApiErrorKind::QueueTimeout {
+                waited_ms: queued.elapsed().as_millis(),
+            }
+            .into())
+        }
     };
+    // The budget runs from here: parsing, indexing and tracing all count.
+    let budget = Budget::from_now(config.render_timeout);
     // Parsed once the slot is taken, so at most one parsed scene per slot
     // is held (the waiting requests hold only their bodies, within their
     // budget), and a waiting request is never stuck in a parse queued on
@@ -168,53 +189,229 @@ pub fn handle(
         .map_err(|e| ApiError::scene(&e))?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
+    let held = charge_render(state, &scene, query.format)?;
+    if budget.spent() {
+        return Err(budget.stopped(state));
+    }
     let options = RenderOptions {
         spp: query.spp,
         depth: query.depth,
-        deadline: Some(Instant::now() + config.render_timeout),
         ..RenderOptions::default()
     };
+    let name = download_name(&scene, query.format);
     let started = Instant::now();
-    let rendered = state
-        .pool
-        .install(|| render_scene(&scene, &options, &|_| {}))
-        .map_err(|e| match e {
-            RenderError::TimedOut => ApiError::new(
-                422,
-                "time_budget",
-                format!(
-                    "the render did not finish within its budget of {} ms",
-                    config.render_timeout.as_millis()
-                ),
-            ),
-            RenderError::BadOption(why) => bad_query(why),
-        })?;
-    let elapsed = started.elapsed();
-    // Encoding runs on this handler thread: the slot is free for the next render.
+    let watched = watched_render(state, conn, may_probe, scene, options, held, &budget);
+    // The render has stopped (or, stopped but stuck under another render's
+    // work on a pool thread, gives its memory back when that ends): the
+    // slot is free for the next render; encoding runs on this thread.
     drop(ticket);
+    let (rendered, mut held) = match watched {
+        Watched::Done(rendered, held) => (rendered, held),
+        Watched::Gone => {
+            state.metrics.render_abandoned();
+            return Ok(None);
+        }
+        Watched::OutOfTime => return Err(budget.stopped(state)),
+        Watched::Failed(RenderError::BadOption(why)) => return Err(bad_query(why)),
+        Watched::Failed(other) => return Err(ApiErrorKind::Encode(other.to_string()).into()),
+    };
+    let elapsed = started.elapsed();
     let rays = rendered.stats.rays.total();
     state.metrics.render(elapsed, rays);
 
     let image = rendered
         .image
         .encode(query.format)
-        .map_err(|e| ApiError::new(500, "encode", e.to_string()))?;
-    Ok(Some(
-        Response::new(200, query.format.mime_type(), image)
-            .with_header(
-                "Content-Disposition",
-                format!(
-                    "inline; filename=\"{}\"",
-                    download_name(&scene, query.format)
-                ),
-            )
-            .with_header("Cache-Control", "no-store")
-            .with_header("X-Render-Ms", format_ms(elapsed))
-            .with_header("X-Rays", rays.to_string())
-            .with_header("X-Image-Width", rendered.image.width.to_string())
-            .with_header("X-Image-Height", rendered.image.height.to_string())
-            .with_header("Access-Control-Expose-Headers", FIGURE_HEADERS),
-    ))
+        .map_err(|e| ApiErrorKind::Encode(e.to_string()))?;
+    let (width, height) = (rendered.image.width, rendered.image.height);
+    drop(rendered);
+    // Only the encoded image is held from here until it is written.
+    held.shrink_to(image.len() as u64);
+    let mut response = Response::new(200, query.format.mime_type(), image)
+        .with_header(
+            "Content-Disposition",
+            format!("inline; filename=\"{name}\""),
+        )
+        .with_header("Cache-Control", "no-store")
+        .with_header("X-Render-Ms", format_ms(elapsed))
+        .with_header("X-Rays", rays.to_string())
+        .with_header("X-Image-Width", width.to_string())
+        .with_header("X-Image-Height", height.to_string())
+        .with_header("Access-Control-Expose-Headers", FIGURE_HEADERS);
+    response.hold = Some(held);
+    Ok(Some(response))
+}
+
+/// A render's time budget: from when it takes its slot, through parsing,
+/// indexing and tracing.
+struct Budget {
+    started: Instant,
+    length: Duration,
+}
+
+impl Budget {
+    fn from_now(length: Duration) -> Self {
+        Budget {
+            started: Instant::now(),
+            length,
+        }
+    }
+
+    fn end(&self) -> Instant {
+        self.started + self.length
+    }
+
+    fn spent(&self) -> bool {
+        Instant::now() >= self.end()
+    }
+
+    /// The answer to a render stopped at the budget's end, counted.
+    fn stopped(&self, state: &State) -> ApiError {
+        let elapsed = self.started.elapsed();
+        state
+            .metrics
+            .render_stopped(elapsed.saturating_sub(self.length));
+        ApiErrorKind::TimeBudget {
+            budget_ms: self.length.as_millis(),
+            elapsed_ms: elapsed.as_millis(),
+        }
+        .into()
+    }
+}
+
+/// How a watched render ended.
+enum Watched {
+    /// With the charge of its memory.
+    Done(Rendered, Charge),
+    /// Its client left; it was stopped.
+    Gone,
+    /// It ran out of its time budget; it was stopped.
+    OutOfTime,
+    Failed(RenderError),
+}
+
+/// Runs the render on the pool while this (handler) thread keeps its clock:
+/// at the budget's end, or once the client is found gone, it cancels the
+/// render, whose rays then stop within one walk, and returns once the
+/// render has returned, or [`STOP_GRACE`] after the cancel at the latest.
+/// The render can outlast that only when a pool thread that waited for its
+/// work picked up another render meanwhile (as rayon threads do while they
+/// wait): it returns once that one does, and gives back `held`, which it
+/// keeps until then, and the scene. A panic in the render is passed on here.
+fn watched_render(
+    state: &State,
+    conn: &Connection,
+    may_probe: bool,
+    scene: Scene,
+    options: RenderOptions,
+    held: Charge,
+    budget: &Budget,
+) -> Watched {
+    let token = CancelToken::new();
+    let options = RenderOptions {
+        deadline: Some(Deadline::on_cancel(&token)),
+        ..options
+    };
+    let (done, finished) = mpsc::sync_channel(1);
+    state.pool.spawn(move || {
+        let result =
+            panic::catch_unwind(AssertUnwindSafe(|| render_scene(&scene, &options, &|_| {})));
+        // Nobody may wait any more: then the charge is given back here,
+        // once the memory it stands for is.
+        let _ = done.send((result, held));
+    });
+    let mut stopped: Option<(Watched, Instant)> = None;
+    loop {
+        let wait = match &stopped {
+            Some((_, at)) => (*at + STOP_GRACE).saturating_duration_since(Instant::now()),
+            None => budget
+                .end()
+                .saturating_duration_since(Instant::now())
+                .min(CLIENT_POLL),
+        };
+        match finished.recv_timeout(wait) {
+            Ok((Err(panicked), _)) => panic::resume_unwind(panicked),
+            Ok((Ok(Ok(rendered)), held)) => return Watched::Done(rendered, held),
+            Ok((Ok(Err(error)), _)) => {
+                return stopped.map_or(Watched::Failed(error), |(why, _)| why);
+            }
+            Err(RecvTimeoutError::Disconnected) => unreachable!("the render always answers"),
+            Err(RecvTimeoutError::Timeout) => {
+                if let Some((why, _)) = stopped {
+                    return why;
+                }
+                let why = if budget.spent() {
+                    Watched::OutOfTime
+                } else if conn.client_gone(may_probe) {
+                    Watched::Gone
+                } else {
+                    continue;
+                };
+                token.cancel();
+                stopped = Some((why, Instant::now()));
+            }
+        }
+    }
+}
+
+/// Charges what the render will hold to the memory budget before it
+/// starts: the parsed scene with its f32 copy and index, the framebuffer,
+/// and the largest encoding of the image, which is held until written.
+/// Refused (with the part that does not fit) if the budget or the measured
+/// resident set has no room.
+fn charge_render(state: &State, scene: &Scene, format: Format) -> Result<Charge, ApiError> {
+    let scene_bytes = scene_bytes(scene);
+    let pixels = u64::from(scene.camera.width) * u64::from(scene.camera.height);
+    let image_bytes = 3 * pixels + encoded_bound(scene, format);
+    let bytes = scene_bytes + image_bytes;
+    let limit = state.memory.limit();
+    let resident = || {
+        let rss = resident_bytes()?;
+        if rss.saturating_add(bytes) <= limit {
+            return Some(rss);
+        }
+        // Freed memory that malloc still holds counts as resident: give it
+        // back first, so that only memory in use refuses a request.
+        super::memory::trim();
+        resident_bytes()
+    };
+    state.memory.take(bytes, resident).ok_or_else(|| {
+        let free = limit.saturating_sub(state.memory.used().max(resident_bytes().unwrap_or(0)));
+        if scene_bytes > free {
+            ApiErrorKind::SceneMemory { bytes: scene_bytes }.into()
+        } else {
+            ApiErrorKind::ResponseMemory { bytes }.into()
+        }
+    })
+}
+
+/// What a scene holds once parsed and indexed, in bytes: the scene, its f32
+/// shapes, and the index with what its build needs.
+fn scene_bytes(scene: &Scene) -> u64 {
+    let per_sphere = std::mem::size_of::<crate::scene::Sphere>()
+        + std::mem::size_of::<crate::geometry::Ellipsoid<f32>>()
+        + limits::INDEX_BUILD_BYTES_PER_SPHERE;
+    let lights = scene.lights.len() * std::mem::size_of::<crate::scene::Light>();
+    (scene.spheres.len() * per_sphere + lights) as u64
+}
+
+/// The largest encoding of the scene's image, in bytes. A PPM is its
+/// pixels and a short header. A PNG's deflate stream may store what it
+/// cannot compress, at 5 bytes per stored block of at most 65,535 bytes,
+/// after a filter byte per row, inside chunks of 12 bytes each.
+fn encoded_bound(scene: &Scene, format: Format) -> u64 {
+    let (width, height) = (
+        u64::from(scene.camera.width),
+        u64::from(scene.camera.height),
+    );
+    let raw = 3 * width * height;
+    match format {
+        Format::Ppm => raw + 32,
+        Format::Png => {
+            let filtered = raw + height;
+            filtered + 5 * filtered.div_ceil(65_535) + 12 * filtered.div_ceil(8 * 1024) + 1024
+        }
+    }
 }
 
 fn format_ms(d: Duration) -> String {
@@ -252,7 +449,7 @@ mod tests {
             "depth=65",
         ] {
             let e = RenderQuery::parse(bad).unwrap_err();
-            assert_eq!((e.status, e.kind), (400, "query"), "{bad}");
+            assert_eq!((e.kind.status(), e.kind.name()), (400, "query"), "{bad}");
         }
     }
 
@@ -285,7 +482,10 @@ mod tests {
             ..config.clone()
         };
         assert_eq!(
-            check_limits(&scene, &query, &small).unwrap_err().status,
+            check_limits(&scene, &query, &small)
+                .unwrap_err()
+                .kind
+                .status(),
             422
         );
         let few_samples = ServiceConfig {
@@ -293,7 +493,10 @@ mod tests {
             ..config.clone()
         };
         assert_eq!(
-            check_limits(&scene, &query, &few_samples).unwrap_err().kind,
+            check_limits(&scene, &query, &few_samples)
+                .unwrap_err()
+                .kind
+                .name(),
             "limit"
         );
         let few_spheres = ServiceConfig {
@@ -302,7 +505,8 @@ mod tests {
         };
         assert!(check_limits(&scene, &query, &few_spheres)
             .unwrap_err()
-            .message
+            .kind
+            .to_string()
             .contains("3 spheres"));
     }
 }

@@ -1,9 +1,11 @@
 //! Which handler answers which method and path.
 
-use super::admission::Charge;
+use super::admission::BodyCharge;
 use super::assets;
-use super::error::ApiError;
+use super::error::{ApiError, ApiErrorKind};
 use super::http::{Connection, RequestHead, Response};
+use super::memory_budget::resident_bytes;
+use super::metrics::Gauges;
 use super::render_route;
 use super::State;
 
@@ -27,6 +29,13 @@ pub fn takes_scene(head: &RequestHead) -> bool {
     head.method == "POST" && head.path == "/render"
 }
 
+/// Whether a connection in the reserve may ask for this: a health check or
+/// the metrics, which cost no render and no memory to speak of.
+pub fn answered_from_reserve(head: &RequestHead) -> bool {
+    matches!(head.method.as_str(), "GET" | "HEAD")
+        && matches!(head.path.as_str(), "/healthz" | "/metrics")
+}
+
 /// Answers one request whose body has been received: `scene` holds it
 /// (with its charge against the body budget) when [`takes_scene`].
 /// `Ok(None)`: the client left before there was anything to say.
@@ -34,21 +43,33 @@ pub fn dispatch(
     state: &State,
     conn: &Connection,
     head: &RequestHead,
-    scene: Option<(Vec<u8>, Charge)>,
+    scene: Option<(Vec<u8>, BodyCharge)>,
 ) -> Result<Option<Response>, ApiError> {
     let method = head.method.as_str();
     let path = head.path.as_str();
     if path == "/render" {
         return match scene {
-            Some((text, charge)) => render_route::handle(state, conn, &head.query, text, charge),
-            None => Err(ApiError::method_not_allowed(method, "POST")),
+            Some((text, charge)) => render_route::handle(state, conn, head, text, charge),
+            None => Err(method_not_allowed(method, "POST")),
         };
     }
-    let found = get_resource(state, path).ok_or_else(|| ApiError::not_found(path))?;
+    let found = get_resource(state, path).ok_or_else(|| {
+        ApiError::from(ApiErrorKind::NotFound {
+            path: path.to_owned(),
+        })
+    })?;
     match method {
         "GET" | "HEAD" => Ok(Some(found)),
-        _ => Err(ApiError::method_not_allowed(method, GET_HEAD)),
+        _ => Err(method_not_allowed(method, GET_HEAD)),
     }
+}
+
+fn method_not_allowed(method: &str, allow: &'static str) -> ApiError {
+    ApiErrorKind::MethodNotAllowed {
+        method: method.to_owned(),
+        allow,
+    }
+    .into()
 }
 
 /// The resources that answer GET (and HEAD).
@@ -59,9 +80,13 @@ fn get_resource(state: &State, path: &str) -> Option<Response> {
         "/metrics" => Response::new(
             200,
             "text/plain; version=0.0.4; charset=utf-8",
-            state
-                .metrics
-                .render_text(state.admission.counts(), state.bodies.used()),
+            state.metrics.render_text(Gauges {
+                admission: state.admission.counts(),
+                body_bytes: state.bodies.used(),
+                memory_bytes: state.memory.used(),
+                memory_budget: state.memory.limit(),
+                resident_bytes: resident_bytes(),
+            }),
         ),
         "/scenes" => Response::new(200, "application/json", assets::scene_list_json()),
         _ => {
