@@ -9,7 +9,8 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct BenchArgs {
     /// Scene files to measure instead of the built-in set
-    /// (uniform, mixed and clustered scenes of 10³, 10⁵ and 10⁶ spheres at 1024×1024).
+    /// (uniform, mixed, clustered, clumps and straddle scenes of 10³, 10⁵ and 10⁶ spheres
+    /// at 1024×1024).
     #[arg(long, num_args = 1..)]
     scene: Vec<PathBuf>,
     /// Print a JSON list instead of a table.

@@ -95,6 +95,8 @@ pub fn builtin_names() -> Vec<(String, Distribution, usize)> {
             Distribution::Uniform,
             Distribution::Mixed,
             Distribution::Clustered,
+            Distribution::Clumps,
+            Distribution::Straddle,
         ] {
             names.push((format!("{}-{}", d.name(), spheres), d, spheres));
         }

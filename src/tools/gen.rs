@@ -25,6 +25,16 @@ const COVERAGE: f64 = 4.0;
 const MIXED_DECADES: f64 = 3.0;
 /// Fraction of a clump's volume its spheres fill.
 const CLUMP_FILL: f64 = 0.2;
+/// The range of clump radii of [`Distribution::Clumps`].
+const CLUMP_RADII: (f64, f64) = (0.15, 1.0);
+/// The range of fills of its clumps: sphere sizes differ up to (hi/lo)^⅓ ≈
+/// 2× from this alone, and up to 10× with the radii and populations.
+const CLUMP_FILLS: (f64, f64) = (0.02, 0.3);
+/// Fraction of its spheres strewn through the frustum as dust.
+const DUST: f64 = 0.02;
+/// The floor sphere's radius, and how far below the eye its top lies.
+const FLOOR_RADIUS: f64 = 1000.0;
+const FLOOR_DROP: f64 = 3.0;
 
 /// How sphere sizes and positions are drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -35,6 +45,14 @@ pub enum Distribution {
     Mixed,
     /// Dense round clumps (√n of them) in empty space.
     Clustered,
+    /// About ∛n clumps of very unequal population (weights u³) and radii
+    /// (log-uniform over [`CLUMP_RADII`]), each with its own sphere size from
+    /// its own fill, 2 % dust through the frustum, and a floor sphere of
+    /// radius 1000 under it all.
+    Clumps,
+    /// Like uniform, but radii within ±20 % of a size whose diameter is a
+    /// power of four: where fixed size bands would split them in two.
+    Straddle,
 }
 
 impl Distribution {
@@ -43,6 +61,8 @@ impl Distribution {
             Distribution::Uniform => "uniform",
             Distribution::Mixed => "mixed",
             Distribution::Clustered => "clustered",
+            Distribution::Clumps => "clumps",
+            Distribution::Straddle => "straddle",
         }
     }
 }
@@ -141,12 +161,22 @@ fn round_to(x: f64, digits: i32) -> f64 {
     (x * scale).round() / scale
 }
 
-/// Places spheres one at a time; holds only the clump centres in memory.
+/// One clump of [`Distribution::Clumps`].
+struct Clump {
+    centre: DVec3,
+    radius: f64,
+    sphere_radius: f64,
+    /// The clump's share of the spheres, summed over it and the clumps before it.
+    cumulative_weight: f64,
+}
+
+/// Places spheres one at a time; holds only the clumps in memory.
 struct Placer {
     distribution: Distribution,
     radius: f64,
     clumps: Vec<DVec3>,
     clump_radius: f64,
+    sized_clumps: Vec<Clump>,
 }
 
 impl Placer {
@@ -157,6 +187,7 @@ impl Placer {
             radius: covering_radius(n, COVERAGE),
             clumps: Vec::new(),
             clump_radius: 0.0,
+            sized_clumps: Vec::new(),
         };
         match options.distribution {
             Distribution::Uniform => {}
@@ -180,6 +211,15 @@ impl Placer {
                 let per_clump = n / count;
                 placer.radius = placer.clump_radius * (CLUMP_FILL / per_clump).cbrt();
             }
+            Distribution::Clumps => {
+                placer.sized_clumps = sized_clumps(n * (1.0 - DUST), rng);
+                placer.radius = covering_radius(n * DUST, COVERAGE / 8.0);
+            }
+            Distribution::Straddle => {
+                // The nearest diameter 4^k to the covering one.
+                let k = (2.0 * placer.radius).log(4.0).round();
+                placer.radius = 0.5 * 4f64.powf(k);
+            }
         }
         placer
     }
@@ -197,8 +237,57 @@ impl Placer {
                 let centre = clump + ball_point(rng) * self.clump_radius;
                 (centre, self.radius * rng.range(0.8, 1.2))
             }
+            Distribution::Clumps => {
+                if rng.unit() < DUST {
+                    return (frustum_point(rng), self.radius * rng.range(0.8, 1.2));
+                }
+                let u = rng.unit();
+                let k = self
+                    .sized_clumps
+                    .partition_point(|c| c.cumulative_weight <= u)
+                    .min(self.sized_clumps.len() - 1);
+                let clump = &self.sized_clumps[k];
+                let centre = clump.centre + ball_point(rng) * clump.radius;
+                (centre, clump.sphere_radius * rng.range(0.8, 1.2))
+            }
+            Distribution::Straddle => (frustum_point(rng), self.radius * rng.range(0.8, 1.2)),
         }
     }
+}
+
+/// ∛n clumps for `spheres` spheres: populations by weights u³, radii
+/// log-uniform, each clump's sphere size set by its own fill.
+fn sized_clumps(spheres: f64, rng: &mut Rng) -> Vec<Clump> {
+    let count = spheres.cbrt().round().max(1.0) as usize;
+    let log = |(lo, hi): (f64, f64), rng: &mut Rng| lo * (hi / lo).powf(rng.unit());
+    let drafts: Vec<(DVec3, f64, f64, f64)> = (0..count)
+        .map(|_| {
+            let radius = log(CLUMP_RADII, rng);
+            let p = frustum_point(rng);
+            let centre = DVec3::new(p.x, p.y, p.z.min(-(Z_NEAR + radius)));
+            (centre, radius, log(CLUMP_FILLS, rng), rng.unit().powi(3))
+        })
+        .collect();
+    let total: f64 = drafts
+        .iter()
+        .map(|d| d.3)
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    let mut cumulative = 0.0;
+    drafts
+        .into_iter()
+        .map(|(centre, radius, fill, weight)| {
+            cumulative += weight / total;
+            // m balls of radius s fill `fill` of the clump: m·s³ = fill·R³.
+            let members = (spheres * weight / total).max(1.0);
+            Clump {
+                centre,
+                radius,
+                sphere_radius: radius * (fill / members).cbrt(),
+                cumulative_weight: cumulative,
+            }
+        })
+        .collect()
 }
 
 fn material(rng: &mut Rng, glass: bool) -> Material {
@@ -235,7 +324,17 @@ pub fn generate(options: &GenOptions, out: &mut impl Write) -> io::Result<()> {
         write_light(out, &format!("l{i}"), light)?;
     }
     let placer = Placer::new(options, &mut rng);
-    for i in 0..options.spheres {
+    let mut first = 0;
+    if options.distribution == Distribution::Clumps && options.spheres > 0 {
+        let floor = Sphere {
+            center: DVec3::new(0.0, -FLOOR_RADIUS - FLOOR_DROP, -(Z_NEAR + Z_FAR) / 2.0),
+            scale: DVec3::splat(FLOOR_RADIUS),
+            material: material(&mut rng, false),
+        };
+        write_sphere(out, "floor", &floor)?;
+        first = 1;
+    }
+    for i in first..options.spheres {
         let (centre, radius) = placer.place(&mut rng);
         let mut scale = DVec3::splat(radius);
         if rng.unit() < options.ellipsoids {
@@ -277,6 +376,8 @@ mod tests {
             Distribution::Uniform,
             Distribution::Mixed,
             Distribution::Clustered,
+            Distribution::Clumps,
+            Distribution::Straddle,
         ] {
             let mut text = Vec::new();
             generate(&options(d, 2000), &mut text).unwrap();
@@ -284,7 +385,11 @@ mod tests {
             assert_eq!(scene.spheres.len(), 2000);
             assert_eq!(scene.lights.len(), 3);
             assert_eq!((scene.camera.width, scene.camera.height), (64, 48));
-            for s in &scene.spheres {
+            for s in scene
+                .spheres
+                .iter()
+                .filter(|s| s.bounding_radius() < FLOOR_RADIUS)
+            {
                 let c = s.center;
                 assert!(c.z < -1.0, "in front of the near plane: {c}");
                 assert!(c.x.abs() < -c.z + 10.0 && c.y.abs() < -c.z + 10.0, "{c}");
@@ -295,11 +400,33 @@ mod tests {
                 .fold((f64::MAX, 0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
             match d {
                 Distribution::Mixed => assert!(hi / lo > 300.0, "{lo} {hi}"),
+                Distribution::Clumps => assert!(hi == FLOOR_RADIUS, "{lo} {hi}"),
                 _ => assert!(hi / lo < 1.6, "{lo} {hi}"),
             }
             assert!(scene.spheres.iter().any(|s| s.material.refract > 0.0));
             assert!(scene.spheres.iter().any(|s| s.scale.y != s.scale.x));
         }
+    }
+
+    #[test]
+    fn clumps_have_sizes_of_their_own_and_straddle_sits_on_a_power_of_four() {
+        let radii = |d: Distribution| {
+            let mut text = Vec::new();
+            generate(&options(d, 20_000), &mut text).unwrap();
+            let scene = scene::parse(&text).unwrap();
+            let mut r: Vec<f64> = scene.spheres.iter().map(|s| s.scale.x).collect();
+            r.sort_by(f64::total_cmp);
+            r
+        };
+        let clumps = radii(Distribution::Clumps);
+        assert_eq!(clumps.last(), Some(&FLOOR_RADIUS));
+        // Sphere sizes across clumps span far more than one clump's ±20 %.
+        let (p5, p95) = (clumps[clumps.len() / 20], clumps[clumps.len() * 19 / 20]);
+        assert!(p95 / p5 > 3.0, "{p5} {p95}");
+        let straddle = radii(Distribution::Straddle);
+        let edge = 4f64.powf((2.0 * straddle[straddle.len() / 2]).log(4.0).round());
+        let below = straddle.iter().filter(|&&r| 2.0 * r < edge).count();
+        assert!(below > 5_000 && below < 15_000, "{below} below {edge}");
     }
 
     #[test]

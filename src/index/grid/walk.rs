@@ -156,38 +156,26 @@ impl Level {
             return self.walk_probing(ray, c, t_next, step, limit, visit);
         }
         let mut region = Cached::<u64>::new();
-        let mut block = Cached::<Block>::new();
+        // The block the walk is in, once it is known to be occupied.
+        let mut block: Option<(BlockKey, Block)> = None;
         loop {
-            // Empty space at three scales: a clear bit of the occupancy
-            // bitmap, a region (4×4×4 blocks) with no occupied block and an
-            // empty block of an occupied region are each crossed in one
-            // step, the last read from the region's mask without probing
-            // the block table.
-            if !self.occupancy.holds(c) {
-                let shift = self.occupancy.shift;
-                if !self.leave_group(ray, &mut c, &mut t_next, step, limit, shift) {
-                    return;
-                }
-                continue;
-            }
             let b = c.map(|v| v >> BLOCK_SHIFT);
-            let blocks = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
-                self.regions.get(k)
-            });
-            let skip = if blocks == 0 {
-                Some(REGION_SHIFT)
-            } else if blocks >> cell_bit(b) & 1 == 0 {
-                Some(BLOCK_SHIFT)
-            } else {
-                None
+            let key = block_key(b);
+            let cells = match block {
+                Some((k, cells)) if k == key => cells,
+                _ => match self.enter_block(c, b, key, &mut region) {
+                    Ok(cells) => {
+                        block = Some((key, cells));
+                        cells
+                    }
+                    Err(shift) => {
+                        if !self.leave_group(ray, &mut c, &mut t_next, step, limit, shift) {
+                            return;
+                        }
+                        continue;
+                    }
+                },
             };
-            if let Some(shift) = skip {
-                if !self.leave_group(ray, &mut c, &mut t_next, step, limit, shift) {
-                    return;
-                }
-                continue;
-            }
-            let cells = block.get(block_key(b), |k| self.table.get(k));
             if cells.holds(cell_bit(c)) {
                 let wanted = visit(self.candidates(cells.cell_index(cell_bit(c))));
                 limit = limit.min(wanted);
@@ -196,6 +184,35 @@ impl Level {
                 return;
             }
         }
+    }
+
+    /// The occupied block `key` (at block coordinates `b`) the walk enters
+    /// at cell `c`, or the shift of the empty group around it to cross in one
+    /// step. Empty space at three scales: a clear bit of the occupancy
+    /// bitmap, a region (4×4×4 blocks) with no occupied block, and an empty
+    /// block of an occupied region, the last read from the region's mask
+    /// without probing the block table.
+    #[inline(always)]
+    fn enter_block(
+        &self,
+        c: [i64; 3],
+        b: [i64; 3],
+        key: BlockKey,
+        region: &mut Cached<u64>,
+    ) -> Result<Block, u32> {
+        if !self.occupancy.holds(c) {
+            return Err(self.occupancy.shift);
+        }
+        let blocks = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
+            self.regions.get(k)
+        });
+        if blocks == 0 {
+            return Err(REGION_SHIFT);
+        }
+        if blocks >> cell_bit(b) & 1 == 0 {
+            return Err(BLOCK_SHIFT);
+        }
+        Ok(self.table.get(key).unwrap_or_default())
     }
 
     /// [`Self::walk`] one cell at a time, probing the block table in each.
