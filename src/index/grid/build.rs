@@ -350,7 +350,7 @@ fn merge_equal_cells(
 
 /// Cells of this many of a class's finest a side decide which of its
 /// spheres are crowded (see [`split_by_density`]).
-const DENSITY_PROBE: f64 = 4.0;
+const DENSITY_PROBE: f64 = 8.0;
 /// A sphere whose probe cell holds at most this many centres is sparse.
 const SPARSE_NEIGHBOURS: u32 = 2;
 /// The smaller part of a split must hold at least this share of the class.
