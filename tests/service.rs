@@ -1,130 +1,16 @@
 //! `voxtrace serve` end to end: a server on an ephemeral loopback port, spoken
 //! to over raw TCP so every byte of the protocol is under test.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::io::{Read, Write};
+use std::net::TcpStream;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use voxtrace::service::{Server, ServerHandle, ServiceConfig};
+use voxtrace::service::{ServerHandle, ServiceConfig};
 
-fn start(config: ServiceConfig) -> ServerHandle {
-    let config = ServiceConfig {
-        addr: "127.0.0.1:0".into(),
-        ..config
-    };
-    Server::bind(config).unwrap().spawn().unwrap()
-}
-
-fn sample(name: &str) -> Vec<u8> {
-    std::fs::read(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes")
-            .join(name),
-    )
-    .unwrap()
-}
-
-/// A client connection that reads responses one after another.
-struct Client {
-    reader: BufReader<TcpStream>,
-}
-
-#[derive(Debug)]
-struct Reply {
-    status: u16,
-    headers: Vec<(String, String)>,
-    body: Vec<u8>,
-}
-
-impl Reply {
-    fn header(&self, name: &str) -> Option<&str> {
-        self.headers
-            .iter()
-            .find(|(n, _)| n.eq_ignore_ascii_case(name))
-            .map(|(_, v)| v.as_str())
-    }
-
-    fn text(&self) -> String {
-        String::from_utf8_lossy(&self.body).into_owned()
-    }
-
-    fn json(&self) -> serde_json::Value {
-        assert_eq!(self.header("content-type"), Some("application/json"));
-        serde_json::from_slice(&self.body).unwrap()
-    }
-}
-
-impl Client {
-    fn connect(addr: SocketAddr) -> Client {
-        let stream = TcpStream::connect(addr).unwrap();
-        stream
-            .set_read_timeout(Some(Duration::from_secs(30)))
-            .unwrap();
-        Client {
-            reader: BufReader::new(stream),
-        }
-    }
-
-    fn send(&mut self, bytes: &[u8]) {
-        self.reader.get_mut().write_all(bytes).unwrap();
-    }
-
-    /// Sends a request with a Host header and the body's Content-Length.
-    fn request(&mut self, method: &str, target: &str, headers: &[&str], body: &[u8]) -> Reply {
-        let mut head = format!("{method} {target} HTTP/1.1\r\nHost: test\r\n");
-        for h in headers {
-            head += &format!("{h}\r\n");
-        }
-        if !body.is_empty() || method == "POST" {
-            head += &format!("Content-Length: {}\r\n", body.len());
-        }
-        head += "\r\n";
-        let mut bytes = head.into_bytes();
-        bytes.extend_from_slice(body);
-        self.send(&bytes);
-        self.read_reply(method == "HEAD")
-    }
-
-    fn read_reply(&mut self, head_only: bool) -> Reply {
-        let mut line = String::new();
-        self.reader.read_line(&mut line).unwrap();
-        let status = line
-            .split(' ')
-            .nth(1)
-            .and_then(|s| s.parse().ok())
-            .unwrap_or_else(|| panic!("bad status line {line:?}"));
-        let mut headers = Vec::new();
-        loop {
-            line.clear();
-            self.reader.read_line(&mut line).unwrap();
-            let line = line.trim_end();
-            if line.is_empty() {
-                break;
-            }
-            let (name, value) = line.split_once(':').unwrap();
-            headers.push((name.to_owned(), value.trim().to_owned()));
-        }
-        let mut reply = Reply {
-            status,
-            headers,
-            body: Vec::new(),
-        };
-        if !head_only && status >= 200 {
-            let length: usize = reply.header("content-length").unwrap().parse().unwrap();
-            reply.body = vec![0; length];
-            self.reader.read_exact(&mut reply.body).unwrap();
-        }
-        reply
-    }
-
-    /// Whether the server has closed the connection.
-    fn closed(&mut self) -> bool {
-        let mut rest = Vec::new();
-        matches!(self.reader.read_to_end(&mut rest), Ok(0))
-    }
-}
+mod support;
+use support::{metric, sample, start, wait_for_metric, Client, Reply};
 
 /// What `voxtrace render SCENE -o x.<ext>` writes.
 fn cli_render(scene: &str, extension: &str) -> Vec<u8> {
@@ -160,31 +46,6 @@ fn costly_scene() -> Vec<u8> {
         text += &format!("LIGHT l{i} {} {} 0 0.001 0.001 0.001\n", i % 10, i / 100);
     }
     text.into_bytes()
-}
-
-/// The value of `metric` (the whole series name, labels included) in `/metrics`.
-fn metric(addr: SocketAddr, metric: &str) -> Option<u64> {
-    let text = Client::connect(addr)
-        .request("GET", "/metrics", &[], b"")
-        .text();
-    text.lines()
-        .find_map(|l| l.strip_prefix(metric)?.strip_prefix(' ')?.parse().ok())
-}
-
-/// Polls `/metrics` until `metric` reaches `value`.
-fn wait_for_metric(addr: SocketAddr, metric_name: &str, value: u64) {
-    let started = Instant::now();
-    loop {
-        let now = metric(addr, metric_name);
-        if now == Some(value) {
-            return;
-        }
-        assert!(
-            started.elapsed() < Duration::from_secs(20),
-            "{metric_name} never reached {value} (it is {now:?})"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
 }
 
 #[test]
