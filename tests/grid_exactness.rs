@@ -387,3 +387,90 @@ fn eye_tiles_agree_on_every_kind_of_scene() {
         }
     }
 }
+
+/// Shadow rays of a tile's hit points toward one light, as the renderer
+/// casts them: origins on (or just off) the surfaces a tile of eye rays
+/// meets, or scattered, and a light near, far, inside a sphere or on a
+/// lattice point.
+fn shadow_bundle(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> (Vec3, Vec<Vec3>) {
+    let half = extent(shapes);
+    let pick = shapes[rng.below(shapes.len())];
+    let light = match rng.below(5) {
+        0 => rng.point(half),
+        1 => rng.point(1.0) * half * 100.0,
+        2 => pick.center,
+        3 => rng.point(half).round(),
+        _ => pick.center + rng.point(1.0) * pick.scale.abs().max_element() * 3.0,
+    };
+    let (origin, dirs) = bundle(rng, shapes);
+    let count = dirs.len();
+    let origins = (0..count)
+        .map(|i| match rng.below(6) {
+            // Where the eye ray meets something (the nearest hit), nudged
+            // off the surface, as shading spawns it.
+            0..=3 => {
+                let ray = Ray::new(origin, dirs[i]);
+                let t = BruteForce::new(shapes)
+                    .closest_hit(&ray, 0.0, f32::INFINITY)
+                    .map_or(1.0, |h| h.t);
+                ray.at(t) + (light - ray.at(t)) * 1e-4
+            }
+            // On a lattice point.
+            4 => rng.point(half).round(),
+            // Anywhere.
+            _ => rng.point(half),
+        })
+        .collect();
+    (light, origins)
+}
+
+fn check_shadow_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
+    let brute = BruteForce::new(shapes);
+    let grid = VoxelHashGrid::new(shapes);
+    let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
+    let mut rng = Rng(seed ^ 0x5ad0);
+    for _ in 0..bundles {
+        let (light, origins) = shadow_bundle(&mut rng, shapes);
+        let want: Vec<bool> = origins
+            .iter()
+            .map(|&o| brute.any_hit(&Ray::new(o, light - o), 1.0))
+            .collect();
+        for index in [&grid, &probing] {
+            let mut got = vec![false; origins.len()];
+            index.any_hits_toward(light, &origins, &mut got);
+            assert_eq!(got, want, "toward {light} from {origins:?}");
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    #[test]
+    fn shadow_packets_agree_with_brute_force(kind in kinds(), seed in any::<u64>()) {
+        check_shadow_packets(&scene(kind, seed), seed, 40);
+    }
+}
+
+/// The shadow bundles above do block and do get through, on every kind of
+/// scene, so the property tests both answers.
+#[test]
+fn shadow_bundles_are_both_blocked_and_lit() {
+    for (i, kind) in ALL_KINDS.into_iter().enumerate() {
+        let shapes = scene(kind, 23 + i as u64);
+        let grid = VoxelHashGrid::new(&shapes);
+        let mut rng = Rng(99 + i as u64);
+        let (mut blocked, mut lit) = (0, 0);
+        for _ in 0..40 {
+            let (light, origins) = shadow_bundle(&mut rng, &shapes);
+            let mut got = vec![false; origins.len()];
+            grid.any_hits_toward(light, &origins, &mut got);
+            blocked += got.iter().filter(|&&b| b).count();
+            lit += got.iter().filter(|&&b| !b).count();
+        }
+        assert!(
+            blocked > 50 && lit > 50,
+            "{kind:?}: {blocked} blocked, {lit} lit"
+        );
+    }
+}

@@ -111,6 +111,11 @@ fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {
         r.refraction,
         r.total()
     );
+    let p = &s.in_packets;
+    eprintln!(
+        "packets eye {}  shadow {}  (rays traced together: a tile's eye rays, its shadow rays toward one light)",
+        p.eye, p.shadow
+    );
     eprintln!("speed   {:10.2} Mrays/s", s.mrays_per_second());
 }
 

@@ -2,6 +2,7 @@
 //! float type: `f32` is the fast path, `f64` the reference it is measured against.
 
 mod ellipsoid;
+pub mod lanes;
 mod real;
 mod spawn;
 

@@ -48,4 +48,14 @@ pub trait SphereIndex<R: Real>: Sync {
     }
     /// Whether any sphere meets the ray with t in (0, t_max). Shadow rays.
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool;
+    /// [`Self::any_hit`] of the shadow rays toward the point `light`, into
+    /// `out` (as long as `origins`): ray i is `o + t·(light − o)` with
+    /// `o = origins[i]`, blocked by a hit with t in (0, 1). Rays from
+    /// neighbouring points should be adjacent: an index may trace them
+    /// together.
+    fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
+        for (&o, blocked) in origins.iter().zip(out) {
+            *blocked = self.any_hit(&Ray::new(o, light - o), R::one());
+        }
+    }
 }

@@ -88,15 +88,19 @@ pub(super) struct Stop {
     /// Raised by the timer at the deadline.
     expired: AtomicBool,
     cancel: Option<CancelToken>,
-    /// Set once a packet of eye rays took longer than [`SLOW_PACKET`]: from
-    /// then on eye rays are traced one at a time, each checked.
+    /// Set once a packet of rays took longer than [`SLOW_PACKET`] in a
+    /// render that can be stopped: from then on rays are traced one at a
+    /// time, each checked.
     single_rays: AtomicBool,
+    /// Whether anything can stop the render (a deadline or a cancel token):
+    /// if not, nothing gains from single rays.
+    stoppable: bool,
     /// The render has ended: the timer may go.
     done: Mutex<bool>,
     ended: Condvar,
 }
 
-/// A packet of eye rays is one walk of the index that nothing interrupts.
+/// A packet of rays is one walk of the index that nothing interrupts.
 /// Walks are some tens of microseconds; one that takes this long shows a
 /// scene whose candidate lists are huge (a hot cell of many thousand
 /// spheres), where a packet may take 64 single walks' time, so the rest of
@@ -110,6 +114,7 @@ impl Stop {
             expired: AtomicBool::new(false),
             cancel: deadline.and_then(|d| d.cancel.clone()),
             single_rays: AtomicBool::new(false),
+            stoppable: deadline.is_some(),
             done: Mutex::new(false),
             ended: Condvar::new(),
         }
@@ -161,9 +166,9 @@ impl Stop {
         self.single_rays.load(Ordering::Relaxed)
     }
 
-    /// Notes how long one packet of eye rays took.
+    /// Notes how long one packet of rays took.
     pub fn packet_took(&self, time: Duration) {
-        if time > SLOW_PACKET {
+        if self.stoppable && time > SLOW_PACKET {
             self.single_rays.store(true, Ordering::Relaxed);
         }
     }
@@ -207,10 +212,18 @@ mod tests {
 
     #[test]
     fn only_a_slow_packet_switches_to_single_rays() {
-        let stop = Stop::new(None);
+        let token = CancelToken::new();
+        let stop = Stop::new(Some(&Deadline::on_cancel(&token)));
         stop.packet_took(Duration::from_micros(50));
         assert!(!stop.single_rays());
         stop.packet_took(SLOW_PACKET * 2);
         assert!(stop.single_rays());
+    }
+
+    #[test]
+    fn a_render_nothing_can_stop_keeps_its_packets() {
+        let stop = Stop::new(None);
+        stop.packet_took(SLOW_PACKET * 2);
+        assert!(!stop.single_rays());
     }
 }

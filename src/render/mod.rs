@@ -8,7 +8,7 @@ mod shading;
 pub use camera::PixelSampler;
 pub use deadline::{CancelToken, Deadline};
 
-use crate::geometry::{Ellipsoid, Ray, Real, Vec3Ops, V3};
+use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{BruteForce, SphereIndex, VoxelHashGrid, PACKET_RAYS};
 use crate::limits;
 use crate::output::Image;
@@ -18,7 +18,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use shading::Tracer;
 use std::fmt;
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// Which specular highlight to use.
@@ -93,9 +94,21 @@ impl RayCounts {
     }
 }
 
+impl std::ops::AddAssign for RayCounts {
+    fn add_assign(&mut self, other: RayCounts) {
+        self.eye += other.eye;
+        self.shadow += other.shadow;
+        self.reflection += other.reflection;
+        self.refraction += other.refraction;
+    }
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RenderStats {
     pub rays: RayCounts,
+    /// Of `rays`, those traced in packets (the eye rays of a tile, or its
+    /// shadow rays toward one light, together).
+    pub in_packets: RayCounts,
     /// Time to build the index.
     pub build_time: Duration,
     /// Time to trace every pixel.
@@ -271,22 +284,20 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
     let sampler = PixelSampler::new(&scene.camera, options.spp);
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut rgb = vec![0u8; width * height * 3];
-    let totals: [AtomicU64; 4] = Default::default();
+    let totals = Mutex::new(BandCounts::default());
     let rows_done = AtomicU32::new(0);
     rgb.par_chunks_mut(width * 3 * BAND as usize)
         .enumerate()
         .for_each(|(band, out)| {
-            let mut counts = RayCounts::default();
+            let mut counts = BandCounts::default();
             let rows = band as u32 * BAND..((band as u32 + 1) * BAND).min(height as u32);
             render_band(&tracer, &sampler, rows.clone(), out, &mut counts, stop);
-            for (total, n) in totals.iter().zip([
-                counts.eye,
-                counts.shadow,
-                counts.reflection,
-                counts.refraction,
-            ]) {
-                total.fetch_add(n, Ordering::Relaxed);
-            }
+            // A poisoned lock only means another band panicked, which
+            // propagates anyway; its counts are still sound to add to.
+            let mut totals = totals.lock().unwrap_or_else(|e| e.into_inner());
+            totals.rays += counts.rays;
+            totals.in_packets += counts.in_packets;
+            drop(totals);
             progress(rows_done.fetch_add(rows.len() as u32, Ordering::Relaxed) + rows.len() as u32);
         });
     match stop.outcome() {
@@ -294,16 +305,12 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
         Some(Stopped::Cancelled) => return Err(RenderError::Cancelled),
         None => {}
     }
-    let [eye, shadow, reflection, refraction] = totals.map(AtomicU64::into_inner);
+    let totals = totals.into_inner().unwrap_or_else(|e| e.into_inner());
     Ok(Rendered {
         image: Image::from_rgb(scene.camera.width, scene.camera.height, rgb),
         stats: RenderStats {
-            rays: RayCounts {
-                eye,
-                shadow,
-                reflection,
-                refraction,
-            },
+            rays: totals.rays,
+            in_packets: totals.in_packets,
             build_time,
             render_time: started.elapsed(),
         },
@@ -329,14 +336,24 @@ pub const BAND: u32 = 32;
 /// spheres one fetches are still in cache for the next, a tile row above or
 /// below included; and each run of [`QUARTER`]² pixels is a compact square.
 pub fn tiles(width: u32, rows: std::ops::Range<u32>) -> impl Iterator<Item = Vec<(u32, u32)>> {
-    (0..width).step_by(BAND as usize).flat_map(move |x0| {
-        let rows = rows.clone();
-        rows.clone().step_by(TILE as usize).flat_map(move |y0| {
-            let rows = rows.clone();
-            (x0..(x0 + BAND).min(width))
-                .step_by(TILE as usize)
-                .map(move |t0| tile_pixels(t0, y0, width, rows.end))
-        })
+    tile_blocks(width, rows).flatten()
+}
+
+/// The tiles of [`tiles`], block by block: each item is the tiles of one
+/// block of [`BAND`]×[`BAND`] pixels, whose shadow rays are traced together.
+pub fn tile_blocks(
+    width: u32,
+    rows: std::ops::Range<u32>,
+) -> impl Iterator<Item = Vec<Vec<(u32, u32)>>> {
+    (0..width).step_by(BAND as usize).map(move |x0| {
+        rows.clone()
+            .step_by(TILE as usize)
+            .flat_map(|y0| {
+                (x0..(x0 + BAND).min(width))
+                    .step_by(TILE as usize)
+                    .map(move |t0| tile_pixels(t0, y0, width, rows.end))
+            })
+            .collect()
     })
 }
 
@@ -353,61 +370,145 @@ fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
     pixels
 }
 
-/// Renders the band of rows `rows` into `out`, tile by tile (see
-/// [`tiles`]), until `stop` says to stop. A tile's eye rays go to the
-/// index together, sample by sample across its pixels (neighbouring rays,
-/// which a packet walks at once), and each pixel then combines its own
+/// The rays one band traced: all of them, and those in packets.
+#[derive(Default)]
+struct BandCounts {
+    rays: RayCounts,
+    in_packets: RayCounts,
+}
+
+/// Renders the band of rows `rows` into `out`, block by block and tile by
+/// tile (see [`tile_blocks`]), until `stop` says to stop. A tile's eye rays
+/// go to the index together, sample by sample across its pixels
+/// (neighbouring rays, which a packet walks at once); then the shadow rays
+/// of a whole block's hits toward each light together (the index finds the
+/// coherent packets among them); and each pixel then combines its own
 /// samples in order, exactly as one pixel at a time would.
 fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
     sampler: &PixelSampler,
     rows: std::ops::Range<u32>,
     out: &mut [u8],
-    counts: &mut RayCounts,
+    counts: &mut BandCounts,
     stop: &Stop,
 ) {
     let width = (out.len() / 3 / rows.len()) as u32;
-    let spp = sampler.spp() as usize;
-    let (mut samples, mut dirs, mut hits) = (Vec::new(), Vec::new(), Vec::new());
-    for pixels in tiles(width, rows.clone()) {
-        let n = pixels.len();
-        // Sample-major: dirs[s·n + p] is sample s of pixel p.
-        dirs.clear();
-        dirs.resize(n * spp, V3::<R>::ZERO);
-        for (p, &(x, y)) in pixels.iter().enumerate() {
-            samples.clear();
-            sampler.directions(x, y, &mut samples);
-            for (s, &d) in samples.iter().enumerate() {
-                dirs[s * n + p] = V3::<R>::from_dvec3(d);
-            }
-        }
-        hits.clear();
-        hits.resize(dirs.len(), None);
-        if !eye_hits(tracer, &dirs, &mut hits, stop) {
+    let mut block = BlockRays::default();
+    for tiles in tile_blocks(width, rows.clone()) {
+        block.aim(sampler, &tiles);
+        if !block.trace(tracer, counts, stop) {
             return;
         }
-        for (p, &(x, y)) in pixels.iter().enumerate() {
-            if stop.now() {
-                return;
+        for (tile, &start) in tiles.iter().zip(&block.starts) {
+            for (p, &(x, y)) in tile.iter().enumerate() {
+                if stop.now() {
+                    return;
+                }
+                let samples = (0..sampler.spp() as usize).map(|s| start + s * tile.len() + p);
+                let color =
+                    sampler.combine(samples.map(|i| block.shade(tracer, i, &mut counts.rays)));
+                let at = (((y - rows.start) * width + x) * 3) as usize;
+                out[at..at + 3].copy_from_slice(&to_bytes(color));
             }
-            let color = sampler.combine((0..spp).map(|s| {
-                let i = s * n + p;
-                tracer.shade_eye(dirs[i], hits[i], counts)
-            }));
-            let at = (((y - rows.start) * width + x) * 3) as usize;
-            out[at..at + 3].copy_from_slice(&to_bytes(color));
         }
+    }
+}
+
+/// The eye rays of one block of tiles, their hits, and what their shadow
+/// rays found, reused block after block.
+#[derive(Default)]
+struct BlockRays<R: Real> {
+    /// Tile by tile, sample-major within a tile: sample s of pixel p of a
+    /// tile of n pixels starting at `start` is `dirs[start + s·n + p]`.
+    dirs: Vec<V3<R>>,
+    /// Where each tile's rays start.
+    starts: Vec<usize>,
+    hits: Vec<Option<crate::index::Hit<R>>>,
+    surfaces: Vec<Option<SurfacePoint<R>>>,
+    /// Row i (one entry per light) says which of hit i's shadow rays are blocked.
+    blocked: Vec<bool>,
+    lights: usize,
+    samples: Vec<DVec3>,
+}
+
+impl<R: Real> BlockRays<R> {
+    /// The eye rays of the tiles `tiles`.
+    fn aim(&mut self, sampler: &PixelSampler, tiles: &[Vec<(u32, u32)>]) {
+        let spp = sampler.spp() as usize;
+        self.dirs.clear();
+        self.starts.clear();
+        for tile in tiles {
+            let (start, n) = (self.dirs.len(), tile.len());
+            self.starts.push(start);
+            self.dirs.resize(start + n * spp, V3::<R>::ZERO);
+            for (p, &(x, y)) in tile.iter().enumerate() {
+                self.samples.clear();
+                sampler.directions(x, y, &mut self.samples);
+                for (s, &d) in self.samples.iter().enumerate() {
+                    self.dirs[start + s * n + p] = V3::<R>::from_dvec3(d);
+                }
+            }
+        }
+    }
+
+    /// Traces the eye rays tile by tile, then the shadow rays of all their
+    /// hits toward each light. False if told to stop.
+    fn trace<I: SphereIndex<R> + ?Sized>(
+        &mut self,
+        tracer: &Tracer<R, I>,
+        counts: &mut BandCounts,
+        stop: &Stop,
+    ) -> bool {
+        self.hits.clear();
+        self.hits.resize(self.dirs.len(), None);
+        let ends = self.starts.iter().skip(1).copied().chain([self.dirs.len()]);
+        for (start, end) in self.starts.iter().copied().zip(ends) {
+            let (dirs, hits) = (&self.dirs[start..end], &mut self.hits[start..end]);
+            if !eye_hits(tracer, dirs, hits, &mut counts.in_packets, stop) {
+                return false;
+            }
+        }
+        self.surfaces.clear();
+        self.surfaces.extend(
+            self.dirs
+                .iter()
+                .zip(&self.hits)
+                .map(|(&dir, hit)| hit.map(|hit| tracer.eye_surface(dir, hit))),
+        );
+        self.lights = tracer.light_count();
+        let BandCounts { rays, in_packets } = counts;
+        tracer.eye_shadows(
+            &self.hits,
+            &self.surfaces,
+            &mut self.blocked,
+            rays,
+            in_packets,
+        )
+    }
+
+    /// The colour seen along eye ray i.
+    fn shade<I: SphereIndex<R> + ?Sized>(
+        &self,
+        tracer: &Tracer<R, I>,
+        i: usize,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        let hit = self.hits[i].zip(self.surfaces[i]);
+        let shadows = &self.blocked[i * self.lights..(i + 1) * self.lights];
+        tracer.shade_eye(self.dirs[i], hit, shadows, counts)
     }
 }
 
 /// The nearest hits of the eye rays `dirs` into `hits`, a packet at a time
 /// (the packets the index would cut the list into itself), checking `stop`
 /// between packets; or one ray at a time, checking between rays, once a
-/// packet has been slow. `false` if told to stop.
+/// packet has been slow; `packed` counts the rays traced in packets.
+/// `false` if told to stop.
 fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
     dirs: &[V3<R>],
     hits: &mut [Option<crate::index::Hit<R>>],
+    packed: &mut RayCounts,
     stop: &Stop,
 ) -> bool {
     for (dirs, hits) in dirs.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
@@ -425,6 +526,7 @@ fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
             let started = Instant::now();
             tracer.eye_hits(dirs, hits);
             stop.packet_took(started.elapsed());
+            packed.eye += dirs.len() as u64;
         }
     }
     true
@@ -502,8 +604,29 @@ mod tests {
                 let single = render(&stop);
                 assert_eq!(packets.image, single.image, "spp {spp}");
                 assert_eq!(packets.stats.rays, single.stats.rays);
+                // Eye rays and their shadow rays go in packets; the shadow
+                // rays of reflected and refracted hits one at a time.
+                let (p, s) = (packets.stats.in_packets, single.stats.in_packets);
+                assert_eq!(p.eye, packets.stats.rays.eye);
+                assert!(p.shadow > 0 && p.shadow <= packets.stats.rays.shadow);
+                assert_eq!(s, RayCounts::default());
             }
         }
+    }
+
+    /// Without reflection or refraction every ray is an eye ray or one of
+    /// its shadow rays, and all of them go in packets.
+    #[test]
+    fn every_ray_of_a_scene_without_bounces_goes_in_packets() {
+        let mut scene = crate::scene::parse(include_bytes!("../../scenes/testSample.txt")).unwrap();
+        for sphere in &mut scene.spheres {
+            (sphere.material.reflect, sphere.material.refract) = (0.0, 0.0);
+        }
+        let stats = render_scene(&scene, &RenderOptions::default(), &|_| {})
+            .unwrap()
+            .stats;
+        assert!(stats.rays.shadow > 0);
+        assert_eq!(stats.in_packets, stats.rays);
     }
 
     #[test]

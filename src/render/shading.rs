@@ -6,16 +6,27 @@
 use super::deadline::Stop;
 use super::{RayCounts, RenderOptions, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
-use crate::index::{Hit, SphereIndex};
+use crate::index::{Hit, SphereIndex, PACKET_RAYS};
 use crate::limits;
 use crate::scene::{Dialect, Material, Scene};
 use glam::DVec3;
+use std::time::Instant;
 
 /// Why a secondary ray is traced, for the statistics.
 #[derive(Clone, Copy)]
 enum Bounce {
     Reflection,
     Refraction,
+}
+
+/// What shading a hit knows of its shadow rays.
+#[derive(Clone, Copy)]
+enum Shadows<'s> {
+    /// Traced already, with the hit's neighbours: entry `l` says whether
+    /// the ray toward light `l` is blocked (read only where one was needed).
+    Known(&'s [bool]),
+    /// To be traced one at a time.
+    Trace,
 }
 
 pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
@@ -93,13 +104,117 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             .closest_hit(&Ray::new(V3::<R>::ZERO, dir), R::one(), R::infinity())
     }
 
+    /// The surface point where the eye ray with direction `dir` meets `hit`.
+    pub fn eye_surface(&self, dir: V3<R>, hit: Hit<R>) -> SurfacePoint<R> {
+        let ray = Ray::new(V3::<R>::ZERO, dir);
+        self.shapes[hit.sphere as usize].surface_point(&ray, hit.t)
+    }
+
+    /// How many lights shading reads: the length of each hit's row of
+    /// [`Self::eye_shadows`].
+    pub fn light_count(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Which shadow rays of the eye hits `hits` (at `surfaces`, None where
+    /// a ray missed) are blocked, into `blocked`: row i (one entry per
+    /// light) for hit i. The rays toward one light from all the hits are
+    /// traced together, in the order of `hits` (a tile's neighbouring
+    /// pixels). `counts` gets the rays traced and `packed` those of them
+    /// traced in packets. False if told to stop.
+    pub fn eye_shadows(
+        &self,
+        hits: &[Option<Hit<R>>],
+        surfaces: &[Option<SurfacePoint<R>>],
+        blocked: &mut Vec<bool>,
+        counts: &mut RayCounts,
+        packed: &mut RayCounts,
+    ) -> bool {
+        let lights = self.lights.len();
+        blocked.clear();
+        blocked.resize(hits.len() * lights, false);
+        let (mut which, mut origins, mut out) = (Vec::new(), Vec::new(), Vec::new());
+        for (l, &(position, _)) in self.lights.iter().enumerate() {
+            which.clear();
+            origins.clear();
+            for (i, (hit, surface)) in hits.iter().zip(surfaces).enumerate() {
+                let (Some(hit), Some(surface)) = (hit, surface) else {
+                    continue;
+                };
+                let m = &self.scene.spheres[hit.sphere as usize].material;
+                if takes_direct_light(m) && faces(surface, position).is_some() {
+                    which.push(i);
+                    origins.push(spawn_origin(surface, position - surface.point));
+                }
+            }
+            out.clear();
+            out.resize(origins.len(), false);
+            if !self.trace_shadow_rays(position, &origins, &mut out, counts, packed) {
+                return false;
+            }
+            for (&i, &b) in which.iter().zip(&out) {
+                blocked[i * lights + l] = b;
+            }
+        }
+        true
+    }
+
+    /// Whether something lies between each of `origins` and `light`, into
+    /// `out`: a packet at a time, checking for a stop between packets; or,
+    /// once a packet has been slow, one ray at a time, checking between
+    /// rays. False if told to stop.
+    fn trace_shadow_rays(
+        &self,
+        light: V3<R>,
+        origins: &[V3<R>],
+        out: &mut [bool],
+        counts: &mut RayCounts,
+        packed: &mut RayCounts,
+    ) -> bool {
+        counts.shadow += origins.len() as u64;
+        for (origins, out) in origins.chunks(PACKET_RAYS).zip(out.chunks_mut(PACKET_RAYS)) {
+            if self.stop.now() {
+                return false;
+            }
+            if self.stop.single_rays() {
+                for (&o, blocked) in origins.iter().zip(out) {
+                    if self.stop.now() {
+                        return false;
+                    }
+                    *blocked = self.index.any_hit(&Ray::new(o, light - o), R::one());
+                }
+            } else {
+                let started = Instant::now();
+                self.index.any_hits_toward(light, origins, out);
+                self.stop.packet_took(started.elapsed());
+                packed.shadow += origins.len() as u64;
+            }
+        }
+        true
+    }
+
     /// The colour seen along the eye ray with direction `dir`, whose nearest
-    /// hit beyond the near plane is `hit`.
-    pub fn shade_eye(&self, dir: V3<R>, hit: Option<Hit<R>>, counts: &mut RayCounts) -> DVec3 {
+    /// hit beyond the near plane is `hit`, at `surface`, with its shadow
+    /// rays' answers `shadows` (its row of [`Self::eye_shadows`]).
+    pub fn shade_eye(
+        &self,
+        dir: V3<R>,
+        hit: Option<(Hit<R>, SurfacePoint<R>)>,
+        shadows: &[bool],
+        counts: &mut RayCounts,
+    ) -> DVec3 {
         counts.eye += 1;
         let ray = Ray::new(V3::<R>::ZERO, dir);
         match hit {
-            Some(hit) => self.shade(&ray, hit, 0, DVec3::ONE, counts),
+            Some((hit, surface)) => self.shade_at(
+                &ray,
+                hit,
+                &surface,
+                0,
+                DVec3::ONE,
+                Shadows::Known(shadows),
+                counts,
+            ),
             None => match self.scene.dialect {
                 Dialect::Classic => self.scene.background,
                 Dialect::Browser => self.secondary_miss,
@@ -119,7 +234,10 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             return DVec3::ZERO;
         }
         match self.index.closest_hit(ray, R::zero(), R::infinity()) {
-            Some(hit) => self.shade(ray, hit, depth, weight, counts),
+            Some(hit) => {
+                let surface = self.shapes[hit.sphere as usize].surface_point(ray, hit.t);
+                self.shade_at(ray, hit, &surface, depth, weight, Shadows::Trace, counts)
+            }
             None => self.secondary_miss,
         }
     }
@@ -130,28 +248,29 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     /// - classic: `Ka·A·O + direct + Kr·reflected + Krefract·refracted`;
     /// - browser: `surface = min(k_a·O + direct, 1)`, then
     ///   `surface + (1 − surface)⊙(k_r·reflected + k_refract·refracted)`.
-    fn shade(
+    #[allow(clippy::too_many_arguments)]
+    fn shade_at(
         &self,
         ray: &Ray<R>,
         hit: Hit<R>,
+        surface: &SurfacePoint<R>,
         depth: u32,
         weight: DVec3,
+        shadows: Shadows,
         counts: &mut RayCounts,
     ) -> DVec3 {
-        let id = hit.sphere as usize;
-        let surface = self.shapes[id].surface_point(ray, hit.t);
-        let m = &self.scene.spheres[id].material;
+        let m = &self.scene.spheres[hit.sphere as usize].material;
         let dir = ray.dir.normalize();
-        let direct = self.direct_light(&surface, m, -dir, counts);
+        let direct = self.direct_light(surface, m, -dir, shadows, counts);
         match self.scene.dialect {
             Dialect::Classic => {
                 let local = m.ambient * self.scene.ambient * m.color + direct;
-                local + self.bounces(dir, &surface, m, depth, weight, DVec3::splat, counts)
+                local + self.bounces(dir, surface, m, depth, weight, DVec3::splat, counts)
             }
             Dialect::Browser => {
                 let local = (m.ambient * m.color + direct).min(DVec3::ONE);
                 let open = DVec3::ONE - local;
-                local + open * self.bounces(dir, &surface, m, depth, weight, |k| k * open, counts)
+                local + open * self.bounces(dir, surface, m, depth, weight, |k| k * open, counts)
             }
         }
     }
@@ -165,23 +284,28 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         surface: &SurfacePoint<R>,
         m: &Material,
         view: V3<R>,
+        shadows: Shadows,
         counts: &mut RayCounts,
     ) -> DVec3 {
         let mut sum = DVec3::ZERO;
-        if m.diffuse == 0.0 && m.specular == 0.0 {
+        if !takes_direct_light(m) {
             return sum;
         }
         let n = surface.normal;
-        for &(position, intensity) in &self.lights {
-            let to_light = (position - surface.point).normalize();
-            let n_dot_l = n.dot(to_light);
-            if n_dot_l.is_nan() || n_dot_l <= R::zero() {
+        for (l, &(position, intensity)) in self.lights.iter().enumerate() {
+            let Some((to_light, n_dot_l)) = faces(surface, position) else {
                 continue;
-            }
-            if self.stop.now() {
-                return sum;
-            }
-            if self.trace_shadow_ray(surface, position, counts) {
+            };
+            let blocked = match shadows {
+                Shadows::Known(blocked) => blocked[l],
+                Shadows::Trace => {
+                    if self.stop.now() {
+                        return sum;
+                    }
+                    self.trace_shadow_ray(surface, position, counts)
+                }
+            };
+            if blocked {
                 continue;
             }
             let spec = if m.specular > 0.0 {
@@ -272,6 +396,22 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         }
         sum
     }
+}
+
+/// Whether the material has a direct-light term at all: if not, its hits
+/// need no shadow rays.
+fn takes_direct_light(m: &Material) -> bool {
+    m.diffuse != 0.0 || m.specular != 0.0
+}
+
+/// The unit direction from the surface point to the light at `position`
+/// and its cosine with the normal, when the light is in front of the
+/// surface (a light behind it is shadowed by the closed surface itself:
+/// no shadow ray is needed, nor any term).
+fn faces<R: Real>(surface: &SurfacePoint<R>, position: V3<R>) -> Option<(V3<R>, R)> {
+    let to_light = (position - surface.point).normalize();
+    let n_dot_l = surface.normal.dot(to_light);
+    (n_dot_l > R::zero()).then_some((to_light, n_dot_l))
 }
 
 /// Whether any sphere can send light back along a secondary ray, in the

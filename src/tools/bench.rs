@@ -44,7 +44,11 @@ pub struct BenchResult {
     pub primary_mrays_s: f64,
     /// Eye rays one at a time.
     pub primary_single_mrays_s: f64,
+    /// Shadow rays as the renderer traces them: those of one tile toward one
+    /// light together.
     pub shadow_mrays_s: f64,
+    /// Shadow rays one at a time.
+    pub shadow_single_mrays_s: f64,
     /// Primary rays when every cell costs a probe (no empty-space skipping).
     pub primary_mrays_s_probe_every_cell: Option<f64>,
     pub brute_primary_mrays_s: Option<f64>,
@@ -151,8 +155,12 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
     let single_s = timed(|| single = primary_pass(&grid, &eye));
     let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
     let shadow_s = timed(|| {
+        std::hint::black_box(shadow_packets(&grid, &shadow));
+    });
+    let single_shadow_s = timed(|| {
         std::hint::black_box(shadow_pass(&grid, &shadow));
     });
+    let shadow_count = shadow.iter().map(|batch| batch.origins.len()).sum();
     let mrays = |rays: usize, seconds: f64| rays as f64 / seconds.max(1e-9) / 1e6;
     let probing = baselines.then(|| {
         let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
@@ -175,7 +183,8 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
         levels: grid.levels().len(),
         primary_mrays_s: primary,
         primary_single_mrays_s: mrays(eye.len(), single_s),
-        shadow_mrays_s: mrays(shadow.len(), shadow_s),
+        shadow_mrays_s: mrays(shadow_count, shadow_s),
+        shadow_single_mrays_s: mrays(shadow_count, single_shadow_s),
         primary_mrays_s_probe_every_cell: probing,
         brute_primary_mrays_s: brute,
         brute_sample,
@@ -222,36 +231,77 @@ fn primary_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<
         .collect()
 }
 
-/// One ray per light per hit, from the offset hit point to the light (t = 1).
+/// The shadow rays of one block's hits toward one light, as the renderer
+/// hands them to the index.
+struct ShadowBatch {
+    light: V3<f32>,
+    origins: Vec<V3<f32>>,
+}
+
+/// One ray per light per hit, from the offset hit point to the light (t = 1),
+/// in batches of one block's rays toward one light ([`render::tile_blocks`]:
+/// [`render::BAND`]² consecutive eye rays when the image's sides are
+/// multiples of it).
 fn shadow_rays(
     scene: &Scene,
     shapes: &[Ellipsoid<f32>],
     eye: &[Ray<f32>],
     hits: &[Option<Hit<f32>>],
-) -> Vec<Ray<f32>> {
+) -> Vec<ShadowBatch> {
     let lights: Vec<V3<f32>> = scene
         .lights
         .iter()
         .map(|l| V3::<f32>::from_dvec3(l.position))
         .collect();
-    eye.par_iter()
-        .zip(hits)
-        .filter_map(|(ray, hit)| hit.map(|h| (ray, h)))
-        .flat_map_iter(|(ray, hit)| {
-            let surface = shapes[hit.sphere as usize].surface_point(ray, hit.t);
-            lights.iter().map(move |&light| {
-                let origin = spawn_origin(&surface, light - surface.point);
-                Ray::new(origin, light - origin)
-            })
+    let block = (render::BAND * render::BAND) as usize;
+    eye.par_chunks(block)
+        .zip(hits.par_chunks(block))
+        .flat_map_iter(|(eye, hits)| {
+            let surfaces: Vec<_> = eye
+                .iter()
+                .zip(hits)
+                .filter_map(|(ray, hit)| {
+                    hit.map(|h| shapes[h.sphere as usize].surface_point(ray, h.t))
+                })
+                .collect();
+            lights
+                .iter()
+                .map(|&light| ShadowBatch {
+                    light,
+                    origins: surfaces
+                        .iter()
+                        .map(|s| spawn_origin(s, light - s.point))
+                        .collect(),
+                })
+                .collect::<Vec<_>>()
         })
         .collect()
 }
 
-fn shadow_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> usize {
-    rays.par_iter()
-        .with_min_len(256)
-        .filter(|ray| index.any_hit(ray, 1.0))
-        .count()
+/// The shadow rays batch by batch, each batch's rays together.
+fn shadow_packets(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usize {
+    batches
+        .par_iter()
+        .map(|batch| {
+            let mut blocked = vec![false; batch.origins.len()];
+            index.any_hits_toward(batch.light, &batch.origins, &mut blocked);
+            blocked.iter().filter(|&&b| b).count()
+        })
+        .sum()
+}
+
+/// The shadow rays one at a time.
+fn shadow_pass(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usize {
+    batches
+        .par_iter()
+        .map(|batch| {
+            batch
+                .origins
+                .iter()
+                .filter(|&&o| index.any_hit(&Ray::new(o, batch.light - o), 1.0))
+                .count()
+        })
+        .sum()
 }
 
 /// Brute force's primary-ray speed: rays traced and seconds taken, over a
@@ -280,12 +330,12 @@ fn brute_rate(shapes: &[Ellipsoid<f32>], eye: &[Ray<f32>]) -> (usize, f64) {
 /// The figures as a Markdown table.
 pub fn markdown_table(results: &[BenchResult]) -> String {
     let mut out = String::from(
-        "| scene | spheres | parse s | build s | index B/sphere | levels | primary Mrays/s | primary single-ray Mrays/s | shadow Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | spheres | parse s | build s | index B/sphere | levels | primary Mrays/s | primary single-ray Mrays/s | shadow Mrays/s | shadow single-ray Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in results {
         out += &format!(
-            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {} | {} | {} |\n",
+            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} |\n",
             r.scene,
             r.spheres,
             r.parse_s,
@@ -295,6 +345,7 @@ pub fn markdown_table(results: &[BenchResult]) -> String {
             r.primary_mrays_s,
             r.primary_single_mrays_s,
             r.shadow_mrays_s,
+            r.shadow_single_mrays_s,
             or_dash(r.primary_mrays_s_probe_every_cell, |v| format!("{v:.2}")),
             or_dash(r.brute_primary_mrays_s, |v| format!("{v:.4}")),
             or_dash(r.speedup_vs_brute, |v| format!("{v:.0}×")),

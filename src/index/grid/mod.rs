@@ -5,7 +5,9 @@
 //! sparsely: a hash table of occupied 4×4×4 blocks ([`table`]) whose masks
 //! lead to the occupied cells, each a run in one flat array of sphere ids
 //! (CSR). A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
-//! coarsest level first, and jumps over empty blocks in one step.
+//! coarsest level first, and jumps over empty blocks in one step. Eye rays
+//! of a tile ([`packet`]) and shadow rays from a tile toward one light
+//! ([`shadow`]) walk each level together, slab by slab ([`slab`]).
 //!
 //! Exactness: every sphere is tested with the very [`Ellipsoid::intersect`]
 //! brute force uses, under the same (t, id) order, and the walk visits every
@@ -13,8 +15,11 @@
 //! grid returns exactly the sphere and t that [`super::BruteForce`] returns.
 
 mod build;
+mod cone;
 mod occupancy;
 mod packet;
+mod shadow;
+mod slab;
 mod table;
 mod walk;
 
@@ -238,41 +243,62 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
         self.packet_closest_hits(origin, dirs, t_min, t_max, out);
     }
 
+    fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
+        self.packet_any_hits_toward(light, origins, out);
+    }
+
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
         let Some(wide) = Ray64::new(ray) else {
             return false;
         };
-        let blocks = |i: u32| {
-            self.spheres[i as usize]
-                .frame
-                .intersect(ray, R::zero(), t_max)
-                .is_some()
-        };
-        if self.short.iter().any(|&i| blocks(i)) {
+        if self.short.iter().any(|&i| self.blocks(i, ray, t_max)) {
             return true;
         }
         let mut mailbox = Mailbox::new();
+        self.levels
+            .iter()
+            .any(|level| self.any_hit_in(level, &wide, ray, t_max, &mut mailbox))
+    }
+}
+
+impl<R: Real> VoxelHashGrid<R> {
+    /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
+    #[inline(always)]
+    fn blocks(&self, i: u32, ray: &Ray<R>, t_max: R) -> bool {
+        self.spheres[i as usize]
+            .frame
+            .intersect(ray, R::zero(), t_max)
+            .is_some()
+    }
+
+    /// Whether a sphere of `level` meets the ray (`wide` in f64) with t in
+    /// (0, t_max).
+    fn any_hit_in(
+        &self,
+        level: &Level,
+        wide: &Ray64,
+        ray: &Ray<R>,
+        t_max: R,
+        mailbox: &mut Mailbox,
+    ) -> bool {
+        let slack = level.slack / wide.length;
         let mut found = false;
-        for level in &self.levels {
-            let slack = level.slack / wide.length;
-            level.walk(
-                &wide,
-                -slack,
-                t_max.to_f64() + slack,
-                self.empty_space,
-                |ids| {
-                    found = ids.iter().any(|&i| mailbox.first_visit(i) && blocks(i));
-                    if found {
-                        f64::NEG_INFINITY
-                    } else {
-                        f64::INFINITY
-                    }
-                },
-            );
-            if found {
-                return true;
-            }
-        }
-        false
+        level.walk(
+            wide,
+            -slack,
+            t_max.to_f64() + slack,
+            self.empty_space,
+            |ids| {
+                found = ids
+                    .iter()
+                    .any(|&i| mailbox.first_visit(i) && self.blocks(i, ray, t_max));
+                if found {
+                    f64::NEG_INFINITY
+                } else {
+                    f64::INFINITY
+                }
+            },
+        );
+        found
     }
 }

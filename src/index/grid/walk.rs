@@ -11,6 +11,7 @@
 use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT};
 use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
+use glam::DVec3;
 
 /// A ray in f64, with its length for turning distances into t.
 #[derive(Clone, Copy, Default)]
@@ -24,7 +25,11 @@ pub struct Ray64 {
 impl Ray64 {
     /// None for a zero, infinite or NaN direction, which hits nothing.
     pub fn new<R: Real>(ray: &Ray<R>) -> Option<Ray64> {
-        let (o, d) = (ray.origin.to_dvec3(), ray.dir.to_dvec3());
+        Ray64::from_f64(ray.origin.to_dvec3(), ray.dir.to_dvec3())
+    }
+
+    /// The ray `o + t·d`; None as for [`Ray64::new`].
+    pub fn from_f64(o: DVec3, d: DVec3) -> Option<Ray64> {
         let length = d.length();
         (length > 0.0 && length.is_finite() && o.is_finite()).then(|| Ray64 {
             o: o.to_array(),

@@ -1,0 +1,305 @@
+//! Shadow-ray packets: the rays from a tile's hit points toward one light,
+//! walked together from the light.
+//!
+//! Shadow rays toward one point light share their end, and from a tile of
+//! neighbouring hit points they leave it in nearly the same direction: seen
+//! from the light they are a packet like a tile's eye rays. Each is walked
+//! backwards, from its end toward its origin, through the slab walk
+//! ([`super::slab`]); each candidate is tested with the ray as the renderer
+//! casts it (from the hit point, t in (0, 1)), lane by lane
+//! ([`crate::geometry::lanes::segments_hit`]), and a ray stops at its first
+//! blocker.
+//!
+//! # Why it answers what brute force answers
+//! The test is the forward one-ray test, bit for bit, so only the walk's
+//! cover matters. Ray i is `o + t·d` with `o` and `d` in the render's
+//! precision; walked backwards it is `e − t'·d` with `e = o + d`, the same
+//! line at `t' = 1 − t`. `e` is computed exactly in f64 (a packet whose sum
+//! would round is traced one ray at a time), so the walk crosses exactly the
+//! cells the forward line crosses over the same stretch, (0, 1) plus the
+//! level's slack at both ends. The ends `e` lie within a few units of f32
+//! of the light, not on it: the slab walk widens its rectangles and its
+//! retire rule by each ray's offset, and the cones test with their bounds
+//! grown by the largest offset.
+
+use super::cone::Cones;
+use super::packet::{groups_of, PacketMailbox, GROUPS, LANES, RAYS};
+use super::slab::{set_bits, Packet, Searching};
+use super::walk::Ray64;
+use super::{Level, Mailbox, VoxelHashGrid};
+use crate::geometry::lanes::{self, LaneVectors};
+use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
+use crate::index::SphereIndex;
+use glam::DVec3;
+
+/// One group of a packet's shadow rays, as the renderer casts them (from
+/// the hit point, reaching the light at t = 1), and which are blocked.
+struct ShadowLanes<R: Real> {
+    origin: LaneVectors<R>,
+    dir: LaneVectors<R>,
+    /// One bit per lane.
+    blocked: u32,
+    /// The lanes blocked since the last look, one bit each.
+    newly: u32,
+}
+
+/// Every lane's bit.
+const ALL_LANES: u32 = (1 << LANES) - 1;
+
+impl<R: Real> ShadowLanes<R> {
+    fn new() -> Self {
+        ShadowLanes {
+            origin: [[R::zero(); LANES]; 3],
+            dir: [[R::zero(); LANES]; 3],
+            blocked: 0,
+            newly: 0,
+        }
+    }
+
+    /// Sets the lanes' rays and forgets what blocked them.
+    fn aim(&mut self, origins: &[V3<R>], dirs: &[V3<R>]) {
+        for (i, (o, d)) in origins.iter().zip(dirs).enumerate().take(LANES) {
+            (self.origin[0][i], self.origin[1][i], self.origin[2][i]) = (o.x(), o.y(), o.z());
+            (self.dir[0][i], self.dir[1][i], self.dir[2][i]) = (d.x(), d.y(), d.z());
+        }
+        self.blocked = 0;
+        self.newly = 0;
+    }
+
+    #[inline(always)]
+    fn test(&mut self, frame: &UnitSphereFrame<R>) {
+        let hit = lanes::segments_hit(frame, &self.origin, &self.dir) & !self.blocked;
+        self.blocked |= hit;
+        self.newly |= hit;
+    }
+}
+
+type ShadowGroups<R> = [ShadowLanes<R>; GROUPS];
+
+impl<R: Real> Searching for ShadowGroups<R> {
+    /// The walk runs from each ray's end (t' = 0) to its origin (t' = 1).
+    fn t_min(&self) -> f64 {
+        0.0
+    }
+
+    #[inline(always)]
+    fn reach(&self, i: usize) -> f64 {
+        if self[i / LANES].blocked >> (i % LANES) & 1 == 1 {
+            f64::NEG_INFINITY
+        } else {
+            1.0
+        }
+    }
+
+    #[inline(always)]
+    fn take_improved(&mut self) -> u64 {
+        self.iter_mut().enumerate().fold(0, |mask, (g, lanes)| {
+            mask | u64::from(std::mem::take(&mut lanes.newly)) << (g * LANES)
+        })
+    }
+}
+
+/// `a + b` when f64 holds it exactly (Knuth's two-sum leaves no error).
+fn exact_sum(a: f64, b: f64) -> Option<f64> {
+    let s = a + b;
+    let b_part = s - a;
+    let error = (a - (s - b_part)) + (b - b_part);
+    (error == 0.0 && s.is_finite()).then_some(s)
+}
+
+/// Aims `packet` at the rays `origins[i] + t·dirs[i]` walked from their
+/// ends near `light`; false when an end is not exact in f64, a ray cannot be
+/// walked or the rays share no axis of travel.
+fn aim_shadow_packet<R: Real>(
+    packet: &mut Packet,
+    light: V3<R>,
+    origins: &[V3<R>; RAYS],
+    dirs: &[V3<R>; RAYS],
+) -> bool {
+    for (ray, (o, d)) in packet.rays.iter_mut().zip(origins.iter().zip(dirs)) {
+        let (o, d) = (o.to_dvec3(), d.to_dvec3());
+        let walked = match [0, 1, 2].map(|a| exact_sum(o[a], d[a])) {
+            [Some(x), Some(y), Some(z)] => Ray64::from_f64(DVec3::new(x, y, z), -d),
+            _ => None,
+        };
+        match walked {
+            Some(r) => *ray = r,
+            None => return false,
+        }
+    }
+    packet.aim(light.to_dvec3().to_array())
+}
+
+/// How many cells across one slab a packet's rays may fan out to, per ray,
+/// for the packet to be walked: wider, the rays cost less one at a time.
+/// Shadow rays from a tile's hit points at different depths fan out from
+/// the light, where eye rays from one tile never do.
+const WIDEST_CELLS_PER_RAY: f64 = 1.0;
+
+/// The order to trace `points` in: along a Morton curve over their bounding
+/// box, so that each run of [`LANES`] (a group of a packet) and of [`RAYS`]
+/// (a packet) is compact in space, and its rays toward the light a narrow
+/// fan.
+fn compact_order<R: Real>(points: &[V3<R>]) -> Vec<usize> {
+    let (lo, hi) = points
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
+        });
+    let scale = 1023.0 / (hi - lo).max_element().max(f64::MIN_POSITIVE);
+    let key = |p: &V3<R>| {
+        let q = ((p.to_dvec3() - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(1023.0));
+        morton(q.x as u32) | morton(q.y as u32) << 1 | morton(q.z as u32) << 2
+    };
+    let mut keyed: Vec<(u32, usize)> = points.iter().map(key).zip(0..).collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// The ten low bits of `x` spread to every third bit.
+fn morton(x: u32) -> u32 {
+    let mut x = x & 0x3ff;
+    x = (x | x << 16) & 0x0300_00ff;
+    x = (x | x << 8) & 0x0300_f00f;
+    x = (x | x << 4) & 0x030c_30c3;
+    (x | x << 2) & 0x0924_9249
+}
+
+/// The rays of `groups` still unblocked, one bit per ray.
+fn open_rays<R: Real>(groups: &ShadowGroups<R>) -> u64 {
+    groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
+        mask | u64::from(!lanes.blocked & ALL_LANES) << (g * LANES)
+    })
+}
+
+impl<R: Real> VoxelHashGrid<R> {
+    /// [`SphereIndex::any_hits_toward`]: packets of [`RAYS`] rays in
+    /// [`compact_order`], and rays one at a time where a packet cannot be
+    /// formed.
+    pub(super) fn packet_any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
+        let mut groups: ShadowGroups<R> = std::array::from_fn(|_| ShadowLanes::new());
+        let mut packet = Packet::new();
+        let order = compact_order::<R>(origins);
+        for order in order.chunks(RAYS) {
+            // A short last packet repeats its last ray in the spare lanes.
+            let sorted: [V3<R>; RAYS] =
+                std::array::from_fn(|i| origins[order[i.min(order.len() - 1)]]);
+            let dirs = sorted.map(|o| light - o);
+            if !aim_shadow_packet::<R>(&mut packet, light, &sorted, &dirs) {
+                for &at in order {
+                    let o = origins[at];
+                    out[at] = self.any_hit(&Ray::new(o, light - o), R::one());
+                }
+                continue;
+            }
+            for (g, lanes) in groups.iter_mut().enumerate() {
+                let lanes_of = g * LANES..(g + 1) * LANES;
+                lanes.aim(&sorted[lanes_of.clone()], &dirs[lanes_of]);
+            }
+            self.trace_shadow_packet(&packet, &mut groups);
+            for (i, &at) in order.iter().enumerate() {
+                out[at] = groups[i / LANES].blocked >> (i % LANES) & 1 == 1;
+            }
+        }
+    }
+
+    /// Tests the short list, then walks each level with the whole packet,
+    /// or group by group where the packet fans out too wide, or ray by ray
+    /// where a group does.
+    fn trace_shadow_packet(&self, packet: &Packet, groups: &mut ShadowGroups<R>) {
+        let cones = Cones::new(packet, 0.0);
+        for &i in &self.short {
+            self.test_shadow_groups(i, &cones, groups, (1 << GROUPS) - 1);
+        }
+        for level in &self.levels {
+            let open = open_rays(groups);
+            if open == 0 {
+                return;
+            }
+            if self.walk_shadow_level(level, packet, &cones, groups, open) {
+                continue;
+            }
+            for g in 0..GROUPS {
+                let among = open & u64::from(ALL_LANES) << (g * LANES);
+                if among != 0 && !self.walk_shadow_level(level, packet, &cones, groups, among) {
+                    self.shadow_rays_one_by_one(level, &mut groups[g]);
+                }
+            }
+        }
+    }
+
+    /// Walks the rays `among` of the packet through `level` together,
+    /// unless they fan out too wide (false).
+    fn walk_shadow_level(
+        &self,
+        level: &Level,
+        packet: &Packet,
+        cones: &Cones,
+        groups: &mut ShadowGroups<R>,
+        among: u64,
+    ) -> bool {
+        let widest = WIDEST_CELLS_PER_RAY * f64::from(among.count_ones());
+        // A fresh mailbox: a sphere seen by an earlier walk of other
+        // groups was not tested against these.
+        let mut mailbox = PacketMailbox::new();
+        level.walk_packet(
+            packet,
+            groups,
+            among,
+            widest,
+            self.empty_space,
+            |ids, groups, live| {
+                let mut searching = groups_of(live);
+                for &i in ids {
+                    if mailbox.first_visit(i) {
+                        self.test_shadow_groups(i, cones, groups, searching);
+                        searching &= open_groups(groups);
+                    }
+                }
+            },
+        )
+    }
+
+    /// Tests candidate `i` against the groups among `searching` whose cones
+    /// it may meet.
+    #[inline(always)]
+    fn test_shadow_groups(
+        &self,
+        i: u32,
+        cones: &Cones,
+        groups: &mut ShadowGroups<R>,
+        searching: u32,
+    ) {
+        let sphere = &self.spheres[i as usize];
+        let center = sphere.frame.center.to_dvec3();
+        let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        for g in set_bits(u64::from(hit)) {
+            groups[g].test(&sphere.frame);
+        }
+    }
+
+    /// The open lanes of `lanes` through `level`, one ray at a time.
+    fn shadow_rays_one_by_one(&self, level: &Level, lanes: &mut ShadowLanes<R>) {
+        let mut open = !lanes.blocked & ALL_LANES;
+        while open != 0 {
+            let i = open.trailing_zeros() as usize;
+            open &= open - 1;
+            let origin = V3::<R>::new(lanes.origin[0][i], lanes.origin[1][i], lanes.origin[2][i]);
+            let dir = V3::<R>::new(lanes.dir[0][i], lanes.dir[1][i], lanes.dir[2][i]);
+            let ray = Ray::new(origin, dir);
+            let Some(wide) = Ray64::new(&ray) else {
+                continue;
+            };
+            if self.any_hit_in(level, &wide, &ray, R::one(), &mut Mailbox::new()) {
+                lanes.blocked |= 1 << i;
+            }
+        }
+    }
+}
+
+/// The groups with an unblocked ray, one bit per group.
+fn open_groups<R: Real>(groups: &ShadowGroups<R>) -> u32 {
+    (0..GROUPS).fold(0, |mask, g| {
+        mask | u32::from(groups[g].blocked != ALL_LANES) << g
+    })
+}

@@ -1,0 +1,629 @@
+//! The slab walk: a packet of rays from (nearly) one point through one level.
+//!
+//! Eye rays leave one point in nearly the same direction, so neighbouring
+//! pixels cross the same cells and meet the same candidates; walked one at a
+//! time they repeat every cell step, probe and sphere fetch. A packet walks a
+//! level once, slab by slab along an axis all its rays travel the same way
+//! (the coherent grid traversal of Wald et al., "Ray Tracing Animated Scenes
+//! using Coherent Grid Traversal", 2006). In each slab (one cell thick) the
+//! rays' segments span a rectangle of cells; the walk hands the candidates
+//! of the occupied cells there to its caller, and moves on while any of its
+//! rays still wants cells that far. A layer of slabs one block thick whose
+//! rectangle meets only empty blocks is crossed with one probe per block,
+//! and a layer of regions (four block layers) with one probe per region.
+//!
+//! The rays need not start on one point: shadow rays toward a light start
+//! within a few f32 units of it (see [`super::shadow`]). Each ray's start
+//! is the packet's origin plus a small offset, and the rectangles and the
+//! rule that retires a ray widen by the offsets.
+//!
+//! # Why it visits every cell a ray needs
+//! - Every cell a ray crosses within a slab lies in the rectangle: a ray's
+//!   segment in a slab is straight, and the rectangle bounds both its ends.
+//! - A ray stops wanting cells under the single walk's rule: once its reach
+//!   (best t, or the end of its search) plus the level's slack lies before
+//!   the slab it would enter next.
+//! - Testing a ray against a sphere from a cell it never crosses can only find
+//!   a true hit, which brute force finds too; the nearest (t, id) wins
+//!   whatever the order of the tests.
+
+use super::packet::RAYS;
+use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
+use super::walk::Ray64;
+use super::{EmptySpace, Level};
+use glam::DVec3;
+
+/// What the slab walk needs to know of the rays it carries.
+pub(super) trait Searching {
+    /// The t each ray's search starts from (the same for all).
+    fn t_min(&self) -> f64;
+    /// How far ray `i` still searches, in t: its best hit or the end of its
+    /// search; −∞ once it needs nothing more.
+    fn reach(&self, i: usize) -> f64;
+    /// The rays whose reach moved nearer since the last call, as a mask.
+    fn take_improved(&mut self) -> u64;
+}
+
+/// The packet's rays in f64 for the walk, and the axis it slabs along.
+pub(super) struct Packet {
+    /// The point the rays start from, or start near.
+    pub origin: [f64; 3],
+    pub rays: [Ray64; RAYS],
+    /// The rays' unit directions, for the choice of axis and the cones.
+    pub unit: [DVec3; RAYS],
+    /// An axis every ray travels along in the same direction.
+    axis: usize,
+    step: i64,
+    /// Per ray, how far it moves across the slabs per unit along `axis`: on
+    /// the two other axes (`axis + 1`, `axis + 2`, mod 3), `d_u / d_axis`.
+    slope: [[f64; RAYS]; 2],
+    /// Per ray, where it crosses a plane across the slabs relative to where
+    /// a ray with its slopes from `origin` would, per cross axis: with δ its
+    /// start minus the origin, `δ_u − δ_axis·slope` (widened by
+    /// [`OFFSET_MARGIN`] toward each side). Zero for rays from the origin.
+    offset_lo: [[f64; RAYS]; 2],
+    offset_hi: [[f64; RAYS]; 2],
+    /// Per ray, `|δ_axis|` (widened): how much farther along the axis it
+    /// may search than a ray from the origin.
+    lead: [f64; RAYS],
+    /// The largest `|δ|` (widened).
+    spread: f64,
+}
+
+/// Relative widening of the start offsets against their own rounding: a
+/// few f64 roundings of values themselves a few f32 units of the origin.
+const OFFSET_MARGIN: f64 = 1e-12;
+
+impl Packet {
+    /// A packet to aim (see [`Packet::aim`]).
+    pub fn new() -> Packet {
+        Packet {
+            origin: [0.0; 3],
+            rays: [Ray64::default(); RAYS],
+            unit: [DVec3::ZERO; RAYS],
+            axis: 0,
+            step: 1,
+            slope: [[0.0; RAYS]; 2],
+            offset_lo: [[0.0; RAYS]; 2],
+            offset_hi: [[0.0; RAYS]; 2],
+            lead: [0.0; RAYS],
+            spread: 0.0,
+        }
+    }
+
+    /// Makes this the packet of the rays now in `rays`, which start at or
+    /// near `origin`; false when they share no axis of travel (those rays
+    /// go one at a time). Reused packet after packet, as it is large.
+    pub fn aim(&mut self, origin: [f64; 3]) -> bool {
+        for (unit, r) in self.unit.iter_mut().zip(&self.rays) {
+            *unit = DVec3::from_array(r.d) / r.length;
+        }
+        // How steeply the shallowest ray travels along each axis (0 when
+        // some ray runs parallel to it or the other way).
+        let first = self.unit[0];
+        let mut steepness = [f64::INFINITY; 3];
+        for u in &self.unit {
+            for (axis, least) in steepness.iter_mut().enumerate() {
+                let same_way = u[axis] != 0.0 && (u[axis] > 0.0) == (first[axis] > 0.0);
+                *least = least.min(if same_way { u[axis].abs() } else { 0.0 });
+            }
+        }
+        // The steepest axis gives the thinnest slab rectangles.
+        let axis = (0..3)
+            .max_by(|&a, &b| steepness[a].total_cmp(&steepness[b]))
+            .unwrap_or(0);
+        if steepness[axis].is_nan() || steepness[axis] <= 0.0 {
+            return false;
+        }
+        self.origin = origin;
+        self.axis = axis;
+        self.step = if first[axis] > 0.0 { 1 } else { -1 };
+        for j in 0..2 {
+            let u = (axis + 1 + j) % 3;
+            for (m, r) in self.slope[j].iter_mut().zip(&self.rays) {
+                *m = r.d[u] / r.d[axis];
+            }
+        }
+        self.measure_offsets();
+        true
+    }
+
+    /// Fills in how far each ray starts from the origin (see the fields).
+    fn measure_offsets(&mut self) {
+        let widen = |x: f64| x.abs() * OFFSET_MARGIN;
+        let [u, v] = self.cross();
+        self.spread = 0.0;
+        for i in 0..RAYS {
+            let delta = DVec3::from_array(self.rays[i].o) - DVec3::from_array(self.origin);
+            (self.offset_lo[0][i], self.offset_hi[0][i]) = (0.0, 0.0);
+            (self.offset_lo[1][i], self.offset_hi[1][i]) = (0.0, 0.0);
+            self.lead[i] = 0.0;
+            if delta == DVec3::ZERO {
+                continue;
+            }
+            for (j, a) in [u, v].into_iter().enumerate() {
+                let c = delta[a] - delta[self.axis] * self.slope[j][i];
+                self.offset_lo[j][i] = c - widen(c);
+                self.offset_hi[j][i] = c + widen(c);
+            }
+            let along = delta[self.axis].abs();
+            self.lead[i] = along + widen(along);
+            let length = delta.length();
+            self.spread = self.spread.max(length + widen(length));
+        }
+    }
+
+    /// How far from the origin a ray may start.
+    pub fn spread(&self) -> f64 {
+        self.spread
+    }
+
+    /// The two axes across the slabs.
+    fn cross(&self) -> [usize; 2] {
+        [(self.axis + 1) % 3, (self.axis + 2) % 3]
+    }
+
+    /// The least and greatest slope and start offset of the rays in `live`,
+    /// per cross axis.
+    fn slope_range(&self, live: u64) -> SlopeRange {
+        let mut range = SlopeRange {
+            lo: [f64::INFINITY; 2],
+            hi: [f64::NEG_INFINITY; 2],
+            offset_lo: [f64::INFINITY; 2],
+            offset_hi: [f64::NEG_INFINITY; 2],
+        };
+        for i in set_bits(live) {
+            for j in 0..2 {
+                let m = self.slope[j][i];
+                range.lo[j] = range.lo[j].min(m);
+                range.hi[j] = range.hi[j].max(m);
+                range.offset_lo[j] = range.offset_lo[j].min(self.offset_lo[j][i]);
+                range.offset_hi[j] = range.offset_hi[j].max(self.offset_hi[j][i]);
+            }
+        }
+        range
+    }
+}
+
+/// The spread of a set of the packet's rays across the slabs.
+struct SlopeRange {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    /// The least and greatest start offsets (see [`Packet::offset_lo`]).
+    offset_lo: [f64; 2],
+    offset_hi: [f64; 2],
+}
+
+/// A rectangle of cells across the slab axis: `[lo, hi]` on the two other axes.
+#[derive(Clone, Copy)]
+struct Rect {
+    lo: [i64; 2],
+    hi: [i64; 2],
+}
+
+/// Most blocks a layer's rectangle may cover for them all to be fetched up
+/// front; a wider rectangle probes block by block.
+const LAYER_BLOCKS: usize = 16;
+
+impl Rect {
+    /// The cells between two planes, from the cells each plane meets.
+    fn between(a: &Rect, b: &Rect) -> Rect {
+        Rect {
+            lo: [a.lo[0].min(b.lo[0]), a.lo[1].min(b.lo[1])],
+            hi: [a.hi[0].max(b.hi[0]), a.hi[1].max(b.hi[1])],
+        }
+    }
+}
+
+/// Relative widening of the rule that retires a ray, against the rounding
+/// of its two sides (a few units in the last place of f64).
+const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
+
+/// How far along the slab axis each ray of a packet still searches this
+/// level, and the nearest of those among the live rays: a ray whose best
+/// t (plus the slack) lies before a slab's entry plane needs nothing beyond.
+///
+/// Ray i is at t = travel / |d_k| on the plane `travel` along the axis from
+/// the origin, so it searches the slab entered there while
+/// `travel ≤ reach_i·|d_k|`; the limit is widened by [`RETIRE_MARGIN`], as
+/// retiring a ray late only costs work and retiring it early would lose hits.
+struct Search {
+    live: u64,
+    limit: [f64; RAYS],
+    nearest: f64,
+}
+
+impl Search {
+    /// Brings the limits of the live rays among `rays` (a mask) up to date
+    /// with their best hits. A limit only shrinks (the best t only moves
+    /// nearer), so the nearest limit is kept by taking the least.
+    fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: u64) {
+        let k = packet.axis;
+        for i in set_bits(rays & self.live) {
+            // A ray that starts ahead of the origin along the axis by δ
+            // meets each plane δ sooner than the origin's travel says.
+            let limit = reach(i) * packet.rays[i].d[k].abs() + packet.lead[i];
+            // A done ray's limit is −∞, which no margin may turn into NaN.
+            let limit = if limit.is_finite() {
+                limit + limit.abs() * RETIRE_MARGIN
+            } else {
+                limit
+            };
+            self.limit[i] = limit;
+            self.nearest = self.nearest.min(limit);
+        }
+    }
+
+    /// Retires the rays done before `travel`; true when the live set changed.
+    fn retire(&mut self, travel: f64) -> bool {
+        if travel <= self.nearest {
+            return false;
+        }
+        self.nearest = f64::INFINITY;
+        for (i, &limit) in self.limit.iter().enumerate() {
+            if travel > limit {
+                self.live &= !(1 << i);
+            } else if self.live >> i & 1 != 0 {
+                self.nearest = self.nearest.min(limit);
+            }
+        }
+        true
+    }
+}
+
+/// The cells, on the two cross axes, that rays with slopes in a
+/// [`SlopeRange`] meet on a plane across the slab axis, in one level.
+struct PlaneCells {
+    /// The origin's cross coordinates relative to the level's lattice, in cells.
+    start: [f64; 2],
+    inv_cell: f64,
+    /// The last cell on each cross axis, as f64 (exact: it is below 2²¹).
+    top: [f64; 2],
+}
+
+impl PlaneCells {
+    fn new(level: &Level, packet: &Packet) -> Self {
+        let cross = packet.cross();
+        // Cells are powers of two, so scaling by the reciprocal is exact
+        // and rounds exactly as dividing by the side would.
+        let inv_cell = 1.0 / level.cell;
+        PlaneCells {
+            start: cross.map(|a| (packet.origin[a] - level.origin[a]) * inv_cell),
+            inv_cell,
+            top: cross.map(|a| (level.dims[a] - 1) as f64),
+        }
+    }
+
+    /// The cells met on the plane `delta` from the origin along the slab
+    /// axis: a ray's cross coordinate there is `o_u + delta·m + c` for its
+    /// slope m and start offset c.
+    #[inline(always)]
+    fn at(&self, range: &SlopeRange, delta: f64) -> Rect {
+        let mut rect = Rect {
+            lo: [0; 2],
+            hi: [0; 2],
+        };
+        for j in 0..2 {
+            let (lo, hi) = if delta >= 0.0 {
+                (delta * range.lo[j], delta * range.hi[j])
+            } else {
+                (delta * range.hi[j], delta * range.lo[j])
+            };
+            let (lo, hi) = (lo + range.offset_lo[j], hi + range.offset_hi[j]);
+            // ⌊x⌋ clamped to [0, top]: clamped first, where truncation is
+            // the floor (and a NaN becomes 0, as `floor_to_int` makes it).
+            let cell = |p: f64| {
+                (self.start[j] + p * self.inv_cell)
+                    .max(0.0)
+                    .min(self.top[j]) as i64
+            };
+            rect.lo[j] = cell(lo);
+            rect.hi[j] = cell(hi);
+        }
+        rect
+    }
+
+    /// How many cells the rectangle of one slab spans at most, for rays
+    /// with slopes and offsets in `range` between the planes `ends` (its
+    /// width grows linearly with the distance from the origin, so it is
+    /// widest at one end).
+    fn widest(&self, range: &SlopeRange, ends: [f64; 2]) -> f64 {
+        let far = ends[0].abs().max(ends[1].abs());
+        let cells = |j: usize| {
+            let width = far * (range.hi[j] - range.lo[j]) + range.offset_hi[j] - range.offset_lo[j];
+            width * self.inv_cell + 1.0
+        };
+        cells(0) * cells(1)
+    }
+}
+
+impl Level {
+    /// Walks the rays `among` (a mask) of the packet through this level,
+    /// calling `visit` with the sphere ids of every occupied cell a
+    /// still-searching ray may cross. False, walking nothing, when those
+    /// rays fan out across more than `widest` cells of one slab: so wide a
+    /// rectangle would visit more cells than the rays one at a time.
+    ///
+    /// A slab's rectangle joins the cells its two planes meet: the cross
+    /// coordinate `o_u + delta·m` is bilinear in the plane and the slope, so
+    /// over a slab and a set of rays its extremes lie on the planes, at the
+    /// extreme slopes. Rounding is monotone, so the rectangle of a slab
+    /// computed so lies inside that of the layer it belongs to.
+    pub(super) fn walk_packet<S: Searching>(
+        &self,
+        packet: &Packet,
+        rays: &mut S,
+        among: u64,
+        widest: f64,
+        empty_space: EmptySpace,
+        mut visit: impl FnMut(&[u32], &mut S, u64),
+    ) -> bool {
+        let (k, step) = (packet.axis, packet.step);
+        let slack: [f64; RAYS] = packet.rays.each_ref().map(|r| self.slack / r.length);
+        let t_lo = rays.t_min();
+        // Each ray's exit from the level's box (widened by the slack), and
+        // the first and last slab any ray is in, counted along the travel.
+        let mut exit = [f64::NEG_INFINITY; RAYS];
+        let mut live = 0u64;
+        let (mut first, mut last) = (i64::MAX, i64::MIN);
+        for i in set_bits(among) {
+            let ray = &packet.rays[i];
+            let reach = rays.reach(i) + slack[i];
+            let Some((a, b)) = self.clip(ray, t_lo - slack[i], reach) else {
+                continue;
+            };
+            exit[i] = b;
+            live |= 1 << i;
+            let top = self.dims[k] - 1;
+            let (sa, sb) = (
+                self.cell_at(ray, a, k, 0, top),
+                self.cell_at(ray, b, k, 0, top),
+            );
+            first = first.min(sa * step);
+            last = last.max(sb * step);
+        }
+        if live == 0 {
+            return true;
+        }
+        let reach = |i: usize, rays: &S| (rays.reach(i) + slack[i]).min(exit[i]);
+        let mut search = Search {
+            live,
+            limit: [f64::INFINITY; RAYS],
+            nearest: f64::INFINITY,
+        };
+        search.update(packet, |i| reach(i, rays), live);
+        rays.take_improved();
+        // Slab s lies between planes s and s + 1; a ray entering it going
+        // down the axis crosses plane s + 1 first.
+        let entry_plane = |s: i64| if step > 0 { s } else { s + 1 };
+        let delta = |plane: i64| self.origin[k] + plane as f64 * self.cell - packet.origin[k];
+        let travel = |s: i64| delta(entry_plane(s)) * step as f64;
+        let mut range = packet.slope_range(search.live);
+        let cells = PlaneCells::new(self, packet);
+        let (first, last) = (first * step, last * step);
+        let ends = [delta(entry_plane(first)), delta(entry_plane(last + step))];
+        if cells.widest(&range, ends) > widest {
+            return false;
+        }
+        let mut blocks = LayerBlocks {
+            state: LayerState::Empty,
+            lo: [0; 2],
+            width: 0,
+            blocks: [None; LAYER_BLOCKS],
+        };
+        // The last slab of the aligned run of 2^shift slabs that s is in (or of the walk).
+        let run_end = |s: i64, shift: u32| {
+            if step > 0 {
+                (s | ((1 << shift) - 1)).min(last)
+            } else {
+                (s >> shift << shift).max(last)
+            }
+        };
+        let mut region_end = first - step;
+        let mut s = first;
+        while s * step <= last * step {
+            let mut entry = cells.at(&range, delta(entry_plane(s)));
+            // The rest of the layer of slabs one block thick that s is in.
+            let layer_end = run_end(s, BLOCK_SHIFT);
+            let empty_until = if s * step > region_end * step {
+                // Entering a layer of regions: crossed at once when its
+                // rectangle meets no occupied block.
+                region_end = run_end(s, 2 * BLOCK_SHIFT);
+                let exit = cells.at(&range, delta(entry_plane(region_end + step)));
+                let rect = Rect::between(&entry, &exit);
+                (!self.any_block_in(k, [s, region_end], rect)).then_some(region_end)
+            } else {
+                None
+            };
+            let empty_until = empty_until.or_else(|| {
+                let layer_exit = cells.at(&range, delta(entry_plane(layer_end + step)));
+                let rect = Rect::between(&entry, &layer_exit);
+                self.layer_blocks(k, s, rect, empty_space, &mut blocks);
+                (blocks.state == LayerState::Empty).then_some(layer_end)
+            });
+            let Some(empty_until) = empty_until else {
+                while s * step <= layer_end * step {
+                    let leaving = cells.at(&range, delta(entry_plane(s + step)));
+                    self.visit_slab(k, s, Rect::between(&entry, &leaving), &blocks, &mut |ids| {
+                        visit(ids, rays, search.live)
+                    });
+                    s += step;
+                    entry = leaving;
+                    // The tests may have found nearer hits.
+                    let improved = rays.take_improved();
+                    if improved != 0 {
+                        search.update(packet, |i| reach(i, rays), improved);
+                    }
+                    if search.retire(travel(s)) {
+                        if search.live == 0 {
+                            return true;
+                        }
+                        range = packet.slope_range(search.live);
+                        entry = cells.at(&range, delta(entry_plane(s)));
+                    }
+                }
+                continue;
+            };
+            s = empty_until + step;
+            if search.retire(travel(s)) {
+                if search.live == 0 {
+                    return true;
+                }
+                range = packet.slope_range(search.live);
+            }
+        }
+        true
+    }
+
+    /// Fetches the blocks of a layer's rectangle into `layer`, once for all
+    /// the layer's slabs.
+    fn layer_blocks(
+        &self,
+        k: usize,
+        s: i64,
+        rect: Rect,
+        empty_space: EmptySpace,
+        layer: &mut LayerBlocks,
+    ) {
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        let lo = rect.lo.map(|c| c >> BLOCK_SHIFT);
+        let hi = rect.hi.map(|c| c >> BLOCK_SHIFT);
+        let width = hi[1] - lo[1] + 1;
+        if ((hi[0] - lo[0] + 1) * width) as usize > LAYER_BLOCKS
+            || empty_space == EmptySpace::ProbeEveryCell
+        {
+            layer.state = LayerState::ProbeEach;
+            return;
+        }
+        let mut any = false;
+        let mut slot = layer.blocks.iter_mut();
+        for bu in lo[0]..=hi[0] {
+            for bv in lo[1]..=hi[1] {
+                let mut b = [0; 3];
+                b[k] = s >> BLOCK_SHIFT;
+                b[u] = bu;
+                b[v] = bv;
+                let block = self.table.get(block_key(b));
+                any |= block.is_some();
+                if let Some(slot) = slot.next() {
+                    *slot = block;
+                }
+            }
+        }
+        (layer.lo, layer.width) = (lo, width);
+        layer.state = if any {
+            LayerState::Fetched
+        } else {
+            LayerState::Empty
+        };
+    }
+
+    /// Whether any block is occupied among the slabs `slabs` (both ends
+    /// inside one layer of regions along axis `k`) within `rect`: one region
+    /// probe per 16×16 cells of the rectangle.
+    fn any_block_in(&self, k: usize, slabs: [i64; 2], rect: Rect) -> bool {
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        let side = 1 << BLOCK_SHIFT;
+        let [lo, hi] = [rect.lo, rect.hi].map(|c| c.map(|c| c >> BLOCK_SHIFT));
+        let blocks = slabs.map(|s| s >> BLOCK_SHIFT);
+        let region = |b: i64| b >> BLOCK_SHIFT;
+        for ru in region(lo[0])..=region(hi[0]) {
+            for rv in region(lo[1])..=region(hi[1]) {
+                let mut r = [0; 3];
+                r[k] = region(blocks[0]);
+                r[u] = ru;
+                r[v] = rv;
+                let mask = match self.regions.get(block_key(r)) {
+                    None => continue,
+                    Some(u64::MAX) => return true,
+                    Some(mask) => mask,
+                };
+                // The blocks of this region in the slabs and the rectangle,
+                // in the region's own coordinates.
+                let (mut from, mut to) = ([0; 3], [0; 3]);
+                let local = |b: i64, r: i64| (b - r * side).clamp(0, side - 1);
+                (from[k], to[k]) = (
+                    local(blocks[0].min(blocks[1]), r[k]),
+                    local(blocks[0].max(blocks[1]), r[k]),
+                );
+                (from[u], to[u]) = (local(lo[0], ru), local(hi[0], ru));
+                (from[v], to[v]) = (local(lo[1], rv), local(hi[1], rv));
+                if mask & box_mask(from, to) != 0 {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Visits the occupied cells of slab `s` within `rect`.
+    fn visit_slab(
+        &self,
+        k: usize,
+        s: i64,
+        rect: Rect,
+        blocks: &LayerBlocks,
+        visit: &mut impl FnMut(&[u32]),
+    ) {
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        // A cell's bit in its block, axis by axis (see `cell_bit`).
+        let side = (1 << BLOCK_SHIFT) - 1;
+        let bit_on = |axis: usize, c: i64| ((c & side) as u32) << (BLOCK_SHIFT as usize * axis);
+        let bit_k = bit_on(k, s);
+        for cu in rect.lo[0]..=rect.hi[0] {
+            let bit_ku = bit_k | bit_on(u, cu);
+            // The row of the layer's blocks this cu lies in, offset so that
+            // adding cv's block gives its slot.
+            let row = ((cu >> BLOCK_SHIFT) - blocks.lo[0]) * blocks.width - blocks.lo[1];
+            for cv in rect.lo[1]..=rect.hi[1] {
+                let block = match blocks.state {
+                    LayerState::Fetched => blocks.blocks[(row + (cv >> BLOCK_SHIFT)) as usize],
+                    _ => {
+                        let mut c = [0; 3];
+                        (c[k], c[u], c[v]) = (s, cu, cv);
+                        self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT)))
+                    }
+                };
+                let bit = bit_ku | bit_on(v, cv);
+                if let Some(b) = block.filter(|b| b.holds(bit)) {
+                    visit(self.candidates(b.cell_index(bit)));
+                }
+            }
+        }
+    }
+}
+
+/// What a layer's rectangle holds.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum LayerState {
+    /// Only empty blocks: the layer is crossed without a look inside.
+    Empty,
+    /// Its blocks are in [`LayerBlocks::blocks`].
+    Fetched,
+    /// Too many blocks to fetch up front (or every cell is to be probed).
+    ProbeEach,
+}
+
+/// The blocks of the current layer's rectangle. One per packet walk, reused
+/// layer after layer.
+struct LayerBlocks {
+    state: LayerState,
+    /// The rectangle's first block on the two cross axes.
+    lo: [i64; 2],
+    /// Blocks per row on the second cross axis.
+    width: i64,
+    /// Row-major over the rectangle from `lo` (when `Fetched`).
+    blocks: [Option<Block>; LAYER_BLOCKS],
+}
+
+/// The positions of the bits set in `mask`, lowest first.
+#[inline(always)]
+pub(super) fn set_bits(mut mask: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
+}
