@@ -45,9 +45,8 @@ pub fn hits_from_one_origin<R: Real>(
                 .unwrap_or(R::nan());
         }
     } else {
-        let f = [f.x(), f.y(), f.z()].map(|v| [v; LANES]);
-        let c = [ff - R::one(); LANES];
-        near_lanes(frame, &f, &c, dir, t_min, cap, &mut found);
+        let (f, c) = ([f.x(), f.y(), f.z()], ff - R::one());
+        near_lanes(frame, |_| (f, c), dir, t_min, cap, &mut found);
     }
     found
 }
@@ -66,10 +65,10 @@ pub fn segments_hit<R: Real>(
     let mut wide = 0u32;
     frame_origins(frame, origin, &mut f, &mut c, &mut wide);
     let mut found = [R::nan(); LANES];
+    let lane_origin = |i: usize| ([f[0][i], f[1][i], f[2][i]], c[i]);
     near_lanes(
         frame,
-        &f,
-        &c,
+        lane_origin,
         dir,
         R::zero(),
         &[R::one(); LANES],
@@ -125,17 +124,16 @@ fn frame_origins<R: Real>(
     }
 }
 
-/// The near-frame test of every lane, given each lane's frame origin `f`
-/// and `c = f·f − 1`: the nearer root in (t_min, cap\[i\]), else the farther,
-/// else NaN.
+/// The near-frame test of every lane, given lane i's frame origin `f` and
+/// `c = f·f − 1` as `origin(i)` (a constant for rays from one origin): the
+/// nearer root in (t_min, cap\[i\]), else the farther, else NaN.
 // The lane loops index several arrays in step, which is what the compiler
 // turns into SIMD.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
 fn near_lanes<R: Real>(
     frame: &UnitSphereFrame<R>,
-    f: &LaneVectors<R>,
-    c: &[R; LANES],
+    origin: impl Fn(usize) -> ([R; 3], R),
     dir: &LaneVectors<R>,
     t_min: R,
     cap: &[R; LANES],
@@ -143,31 +141,42 @@ fn near_lanes<R: Real>(
 ) {
     let s = frame.inv_scale;
     let (sx, sy, sz) = (s.x(), s.y(), s.z());
-    let one = R::one();
     for i in 0..LANES {
-        let (fx, fy, fz) = (f[0][i], f[1][i], f[2][i]);
-        let (ex, ey, ez) = (dir[0][i] * sx, dir[1][i] * sy, dir[2][i] * sz);
-        // a = e·e, b = f·e, and the closest approach l, projected twice.
-        let a = ex * ex + ey * ey + ez * ez;
-        let b = fx * ex + fy * ey + fz * ez;
-        let k = b / a;
-        let (lx, ly, lz) = (fx - ex * k, fy - ey * k, fz - ez * k);
-        let k = (lx * ex + ly * ey + lz * ez) / a;
-        let (lx, ly, lz) = (lx - ex * k, ly - ey * k, lz - ez * k);
-        let disc = a * (one - (lx * lx + ly * ly + lz * lz));
-        // The roots c/q and q/a, nearer first.
-        let q = -(b + disc.sqrt().copysign(b));
-        let (t0, t1) = (c[i] / q, q / a);
-        let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-        let t = if near > t_min && near < cap[i] {
-            near
-        } else if far > t_min && far < cap[i] {
-            far
-        } else {
-            R::nan()
-        };
-        // A NaN or negative discriminant: the line misses.
-        found[i] = if disc >= R::zero() { t } else { R::nan() };
+        let (f, c) = origin(i);
+        let e = [dir[0][i] * sx, dir[1][i] * sy, dir[2][i] * sz];
+        found[i] = near_hit(f, c, e, t_min, cap[i]);
+    }
+}
+
+/// One lane of [`near_lanes`]: the operations of the one-ray test, in its
+/// order, for the frame origin `f`, `c = f·f − 1` and frame direction `e`.
+#[inline(always)]
+fn near_hit<R: Real>(f: [R; 3], c: R, e: [R; 3], t_min: R, cap: R) -> R {
+    let ([fx, fy, fz], [ex, ey, ez]) = (f, e);
+    // a = e·e, b = f·e, and the closest approach l, projected twice.
+    let a = ex * ex + ey * ey + ez * ez;
+    let b = fx * ex + fy * ey + fz * ez;
+    let k = b / a;
+    let (lx, ly, lz) = (fx - ex * k, fy - ey * k, fz - ez * k);
+    let k = (lx * ex + ly * ey + lz * ez) / a;
+    let (lx, ly, lz) = (lx - ex * k, ly - ey * k, lz - ez * k);
+    let disc = a * (R::one() - (lx * lx + ly * ly + lz * lz));
+    // The roots c/q and q/a, nearer first.
+    let q = -(b + disc.sqrt().copysign(b));
+    let (t0, t1) = (c / q, q / a);
+    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    let t = if near > t_min && near < cap {
+        near
+    } else if far > t_min && far < cap {
+        far
+    } else {
+        R::nan()
+    };
+    // A NaN or negative discriminant: the line misses.
+    if disc >= R::zero() {
+        t
+    } else {
+        R::nan()
     }
 }
 

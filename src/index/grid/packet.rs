@@ -194,16 +194,8 @@ impl<R: Real> VoxelHashGrid<R> {
     fn trace_packet(&self, packet: &Packet, groups: &mut Groups<R>, t_min: R) {
         let mut mailbox = PacketMailbox::new();
         let cones = Cones::new(packet, t_min.to_f64());
-        let test = |i: u32, groups: &mut Groups<R>, searching: u32| {
-            let sphere = &self.spheres[i as usize];
-            let center = sphere.frame.center.to_dvec3();
-            let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
-            for g in set_bits(u64::from(hit)) {
-                groups[g].test(&sphere.frame, sphere.id);
-            }
-        };
         for &i in &self.short {
-            test(i, groups, (1 << GROUPS) - 1);
+            self.test_eye_groups(i, &cones, groups, (1 << GROUPS) - 1);
         }
         for level in &self.levels {
             let all = u64::MAX;
@@ -217,11 +209,23 @@ impl<R: Real> VoxelHashGrid<R> {
                     let searching = groups_of(live);
                     for &i in ids {
                         if mailbox.first_visit(i) {
-                            test(i, groups, searching);
+                            self.test_eye_groups(i, &cones, groups, searching);
                         }
                     }
                 },
             );
+        }
+    }
+
+    /// Tests candidate `i` against the groups among `searching` whose cones
+    /// it may meet.
+    #[inline(always)]
+    fn test_eye_groups(&self, i: u32, cones: &Cones, groups: &mut Groups<R>, searching: u32) {
+        let sphere = &self.spheres[i as usize];
+        let center = sphere.frame.center.to_dvec3();
+        let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        for g in set_bits(u64::from(hit)) {
+            groups[g].test(&sphere.frame, sphere.id);
         }
     }
 }
