@@ -10,6 +10,7 @@ pub mod index;
 pub mod limits;
 pub mod output;
 pub mod render;
+pub mod rng;
 pub mod scene;
 pub mod service;
 pub mod tools;
