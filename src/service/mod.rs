@@ -29,6 +29,7 @@ mod render_route;
 mod routes;
 
 use crate::limits;
+use crate::threads::{self, Threads};
 use admission::{Admission, BodyBudget};
 use error::{ApiError, ApiErrorKind};
 use memory_budget::MemoryBudget;
@@ -71,8 +72,8 @@ pub struct ServiceConfig {
     pub head_timeout: Duration,
     pub body_timeout: Duration,
     pub write_timeout: Duration,
-    /// Render threads (all cores when `None`).
-    pub threads: Option<usize>,
+    /// Render threads.
+    pub threads: Threads,
 }
 
 impl Default for ServiceConfig {
@@ -95,7 +96,7 @@ impl Default for ServiceConfig {
             head_timeout: ms(limits::DEFAULT_HEAD_TIMEOUT_MS),
             body_timeout: ms(limits::DEFAULT_BODY_TIMEOUT_MS),
             write_timeout: ms(limits::DEFAULT_WRITE_TIMEOUT_MS),
-            threads: None,
+            threads: Threads::AllCores,
         }
     }
 }
@@ -133,9 +134,6 @@ impl ServiceConfig {
         }
         if self.body_memory < self.max_body {
             return invalid("--body-memory must be at least --max-body");
-        }
-        if self.threads == Some(0) {
-            return invalid("--threads must be at least 1");
         }
         Ok(())
     }
@@ -177,11 +175,7 @@ impl Server {
             )
         })?;
         let listener = TcpListener::bind(addr)?;
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(config.threads.unwrap_or(0))
-            .thread_name(|i| format!("voxtrace-render-{i}"))
-            .build()
-            .map_err(io::Error::other)?;
+        let pool = threads::pool(config.threads).map_err(io::Error::other)?;
         // Measured once the pool's threads exist: what the service holds idle.
         let baseline = memory_budget::resident_bytes().unwrap_or(0);
         if config.memory_budget < baseline + config.max_body {

@@ -38,7 +38,7 @@ const FLOOR_RADIUS: f64 = 1000.0;
 const FLOOR_DROP: f64 = 3.0;
 
 /// How sphere sizes and positions are drawn.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Distribution {
     /// Uniform in the frustum, radii within ±20 % of one size.
     Uniform,
@@ -57,14 +57,9 @@ pub enum Distribution {
 }
 
 impl Distribution {
+    /// Its name (see [`crate::names`]).
     pub fn name(self) -> &'static str {
-        match self {
-            Distribution::Uniform => "uniform",
-            Distribution::Mixed => "mixed",
-            Distribution::Clustered => "clustered",
-            Distribution::Clumps => "clumps",
-            Distribution::Straddle => "straddle",
-        }
+        crate::names::Named::name(self)
     }
 }
 

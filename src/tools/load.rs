@@ -14,6 +14,7 @@
 
 use crate::output::Format;
 use crate::render::{render_scene, RenderOptions};
+use crate::threads::Threads;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::io::{self, BufRead, BufReader, IsTerminal, Read, Write};
@@ -399,9 +400,11 @@ pub fn run(config: &LoadConfig) -> Result<Report, String> {
     let mut pool = None;
     let addr = if config.in_process {
         let body = config.body.as_deref().ok_or("--in-process needs --scene")?;
-        crate::scene::parse(body).map_err(|e| format!("the scene: {e}"))?;
-        let threads = rayon::ThreadPoolBuilder::new().build();
-        pool = Some(threads.map_err(|e| format!("cannot start the render threads: {e}"))?);
+        let threads = crate::threads::pool(Threads::AllCores).map_err(|e| e.to_string())?;
+        threads
+            .install(|| crate::scene::parse(body))
+            .map_err(|e| format!("the scene: {e}"))?;
+        pool = Some(threads);
         None
     } else {
         let addr = config
