@@ -34,7 +34,7 @@ use admission::{Admission, BodyBudget};
 use error::{ApiError, ApiErrorKind};
 use memory_budget::MemoryBudget;
 use metrics::Metrics;
-use registry::{Caps, Over, Place, Registry};
+use registry::{Caps, Over, Quota, Registry};
 use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::{self, AssertUnwindSafe};
@@ -246,12 +246,12 @@ impl Server {
         };
         let stream = Arc::new(stream);
         let caps = state.config.caps();
-        let (id, place) = match state.connections.open(Arc::clone(&stream), peer.ip(), caps) {
+        let (id, quota) = match state.connections.open(Arc::clone(&stream), peer.ip(), caps) {
             Ok(registered) => registered,
-            Err(registry::Refused::Full(over)) => {
+            Err(registry::NotRegistered::Full(over)) => {
                 return turn_away(state, &stream, over_limit(&state.config, over))
             }
-            Err(registry::Refused::Stopping) => {
+            Err(registry::NotRegistered::Stopping) => {
                 return turn_away(state, &stream, over_limit(&state.config, Over::Total))
             }
         };
@@ -260,10 +260,10 @@ impl Server {
         let spawned = thread::Builder::new()
             .name("voxtrace-conn".into())
             .stack_size(CONNECTION_STACK_BYTES)
-            .spawn(move || serve_connection(&shared, id, place, reader, accepted));
+            .spawn(move || serve_connection(&shared, id, quota, reader, accepted));
         if spawned.is_err() {
             // The thread never ran: end the connection's registration here.
-            drop(state.connections.slot(id));
+            drop(state.connections.registration(id));
             turn_away(state, &stream, over_limit(&state.config, Over::Total));
         }
     }
@@ -299,25 +299,25 @@ fn over_limit(config: &ServiceConfig, over: Over) -> ApiErrorKind {
 fn serve_connection(
     state: &State,
     id: u64,
-    place: Place,
+    quota: Quota,
     stream: Arc<TcpStream>,
     accepted: Instant,
 ) {
-    let slot = state.connections.slot(id);
+    let registration = state.connections.registration(id);
     // A bug that panics while serving one connection ends that connection
     // only. Its registration, admission ticket and counters are released by
     // their destructors during the unwind.
-    let served = panic::catch_unwind(AssertUnwindSafe(|| match place {
-        Place::Regular => connection::serve(state, &slot, stream, accepted),
-        Place::Reserve(over) => {
+    let served = panic::catch_unwind(AssertUnwindSafe(|| match quota {
+        Quota::Regular => connection::serve(state, &registration, stream, accepted),
+        Quota::Reserve(over) => {
             let refusal = over_limit(&state.config, over);
-            connection::serve_reserve(state, &slot, stream, accepted, refusal)
+            connection::serve_reserve(state, &registration, stream, accepted, refusal)
         }
     }));
     if served.is_err() {
         state.metrics.request("panic", 500);
     }
-    drop(slot);
+    drop(registration);
     state.metrics.connection_closed();
 }
 

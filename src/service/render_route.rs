@@ -1,6 +1,6 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
-use super::admission::{BodyCharge, Refused};
+use super::admission::{BodyCharge, NotAdmitted};
 use super::error::{ApiError, ApiErrorKind};
 use super::http::{Connection, RequestHead, Response};
 use super::memory_budget::{resident_bytes, Charge};
@@ -162,12 +162,12 @@ pub fn handle(
     let deadline = queued + config.render_timeout;
     let ticket = match place.enter(deadline, QUEUE_POLL, || conn.client_gone(may_probe)) {
         Ok(ticket) => ticket,
-        Err(Refused::Abandoned) => {
+        Err(NotAdmitted::Abandoned) => {
             state.metrics.render_abandoned();
             return Ok(None);
         }
-        Err(Refused::QueueFull) => return Err(ApiErrorKind::QueueFull.into()),
-        Err(Refused::WaitedTooLong) => {
+        Err(NotAdmitted::QueueFull) => return Err(ApiErrorKind::QueueFull.into()),
+        Err(NotAdmitted::WaitedTooLong) => {
             return Err(ApiErrorKind::QueueTimeout {
                 waited_ms: queued.elapsed().as_millis(),
             }
@@ -357,7 +357,7 @@ fn watched_render(
 /// Charges what the render will hold to the memory budget before it
 /// starts: the parsed scene with its f32 copy and index, the framebuffer,
 /// and the largest encoding of the image, which is held until written.
-/// Refused (with the part that does not fit) if the budget or the measured
+/// NotAdmitted (with the part that does not fit) if the budget or the measured
 /// resident set has no room.
 fn charge_render(state: &State, scene: &Scene, format: Format) -> Result<Charge, ApiError> {
     let scene_bytes = scene_bytes(scene);

@@ -70,10 +70,12 @@ impl Url {
     }
 }
 
-/// When to stop.
+/// How long a run lasts.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Stop {
-    After(Duration),
+pub enum Until {
+    /// Until this much time has passed since the start.
+    Elapsed(Duration),
+    /// Until this many requests have been sent.
     Requests(u64),
 }
 
@@ -83,7 +85,7 @@ pub struct LoadConfig {
     /// The scene to POST; without one, requests are GETs.
     pub body: Option<Vec<u8>>,
     pub concurrency: usize,
-    pub stop: Stop,
+    pub until: Until,
     /// Requests per second on a fixed schedule (open loop); `None`: closed loop.
     pub rate: Option<f64>,
     /// Longest wait for one response.
@@ -152,7 +154,7 @@ struct Sample {
 
 /// What a run measured.
 #[derive(Debug)]
-pub struct Report {
+pub struct LoadReport {
     /// The measuring window: the whole `--duration`, or the time to finish
     /// `--requests`.
     pub elapsed: Duration,
@@ -225,7 +227,7 @@ impl fmt::Display for Latency {
     }
 }
 
-impl Report {
+impl LoadReport {
     fn per_second(&self, n: u64) -> f64 {
         n as f64 / self.elapsed.as_secs_f64().max(1e-9)
     }
@@ -287,7 +289,7 @@ impl Report {
     }
 }
 
-impl fmt::Display for Report {
+impl fmt::Display for LoadReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let secs = self.elapsed.as_secs_f64();
         writeln!(
@@ -381,16 +383,16 @@ impl Run<'_> {
             Some(rate) => self.started + Duration::from_secs_f64(i as f64 / rate),
             None => Instant::now(),
         };
-        match self.config.stop {
-            Stop::Requests(n) if i >= n => None,
-            Stop::After(d) if due >= self.started + d => None,
+        match self.config.until {
+            Until::Requests(n) if i >= n => None,
+            Until::Elapsed(d) if due >= self.started + d => None,
             _ => Some(due),
         }
     }
 }
 
 /// Runs the load and reports what it measured.
-pub fn run(config: &LoadConfig) -> Result<Report, String> {
+pub fn run(config: &LoadConfig) -> Result<LoadReport, String> {
     if config.concurrency == 0 {
         return Err("--concurrency must be at least 1".into());
     }
@@ -439,9 +441,9 @@ pub fn run(config: &LoadConfig) -> Result<Report, String> {
         run.live.finished.store(true, Ordering::Relaxed);
         samples
     });
-    let window = match config.stop {
-        Stop::After(window) => window,
-        Stop::Requests(_) => run.started.elapsed(),
+    let window = match config.until {
+        Until::Elapsed(window) => window,
+        Until::Requests(_) => run.started.elapsed(),
     };
     let mut report = summarize(samples.into_iter().flatten().collect(), window);
     report.unfinished = run.live.unfinished.load(Ordering::Relaxed);
@@ -481,7 +483,7 @@ fn worker(run: &Run) -> Vec<Sample> {
             Some(pool) => render_in_process(run, pool, due),
             None => exchange(run, &mut conn, &mut scratch, due),
         };
-        if let Stop::After(window) = run.config.stop {
+        if let Until::Elapsed(window) = run.config.until {
             if run.started.elapsed() > window {
                 run.live.unfinished.fetch_add(1, Ordering::Relaxed);
                 continue;
@@ -691,9 +693,9 @@ fn render_in_process(run: &Run, pool: &rayon::ThreadPool, due: Instant) -> Sampl
     }
 }
 
-fn summarize(mut samples: Vec<Sample>, elapsed: Duration) -> Report {
+fn summarize(mut samples: Vec<Sample>, elapsed: Duration) -> LoadReport {
     samples.sort_by_key(|s| s.latency);
-    let mut report = Report {
+    let mut report = LoadReport {
         elapsed,
         unfinished: 0,
         missing_retry_after: samples.iter().filter(|s| s.missing_retry_after).count() as u64,

@@ -281,7 +281,8 @@ fn reduced(scene: &Scene, size: u32) -> Scene {
     s
 }
 
-struct Rendered {
+/// The timed repetitions of one variant, and the image they all rendered.
+struct Runs {
     image: crate::output::Image,
     rays: RayCounts,
     seconds: Vec<f64>,
@@ -322,7 +323,7 @@ fn measure_scene(
             &entry.scene
         }
     };
-    let mut runs: Vec<Option<Rendered>> = variants.iter().map(|_| None).collect();
+    let mut runs: Vec<Option<Runs>> = variants.iter().map(|_| None).collect();
     for rep in 0..reps.max(1) {
         for (v, run) in variants.iter().zip(&mut runs) {
             // The 256-sample reference costs more than everything else
@@ -333,7 +334,7 @@ fn measure_scene(
             let started = Instant::now();
             let r = render_once(scene_for(v), &entry.name, v)?;
             let wall = started.elapsed().as_secs_f64();
-            let run = run.get_or_insert_with(|| Rendered {
+            let run = run.get_or_insert_with(|| Runs {
                 image: r.image.clone(),
                 rays: r.stats.rays,
                 seconds: vec![],
@@ -344,7 +345,7 @@ fn measure_scene(
             run.render_seconds.push(r.stats.render_time.as_secs_f64());
         }
     }
-    let runs: Vec<Rendered> = runs
+    let runs: Vec<Runs> = runs
         .into_iter()
         .map(|r| r.expect("at least one repetition"))
         .collect();
