@@ -118,3 +118,34 @@ fn a_kept_alive_connection_closed_by_the_server_while_idle_is_replaced_not_count
     assert_eq!(report.status.get(&200), Some(&6), "{report}");
     assert!(report.errors.is_empty(), "{:?}", report.errors);
 }
+
+/// In process and over HTTP, a request runs the service's one render path:
+/// what the service refuses (a bad spp, a broken scene) is refused in
+/// process with the same status, and nothing is rendered.
+#[test]
+fn in_process_refuses_what_the_service_refuses() {
+    let server = serve(ServiceConfig::default());
+    for (query, body) in [
+        ("spp=0", sample()),
+        ("spp=two", sample()),
+        ("depth=65", sample()),
+        ("format=gif", sample()),
+        ("", b"NEAR x\n".to_vec()),
+    ] {
+        let url = format!("http://{}/render?{query}", server.addr());
+        let over_http = config(url, Some(body), 1, Until::Requests(2));
+        let in_process = LoadConfig {
+            in_process: true,
+            ..over_http.clone()
+        };
+        for cfg in [over_http, in_process] {
+            let report = load::run(&cfg).unwrap();
+            assert_eq!(
+                (report.status.get(&400), report.renders),
+                (Some(&2), 0),
+                "{query} in process: {}",
+                cfg.in_process
+            );
+        }
+    }
+}

@@ -28,10 +28,12 @@ mod registry;
 mod render_route;
 mod routes;
 
+pub use error::{ApiError, ApiErrorKind};
+pub use render_route::{render_request, EncodedRender};
+
 use crate::limits;
 use crate::threads::{self, Threads};
 use admission::{Admission, BodyBudget};
-use error::{ApiError, ApiErrorKind};
 use memory_budget::MemoryBudget;
 use metrics::Metrics;
 use registry::{Caps, Over, Quota, Registry};

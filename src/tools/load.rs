@@ -8,12 +8,13 @@
 //! loop against a slow server sends less and so hides the queueing a real
 //! user would see ("coordinated omission"); the open loop's schedule does not.
 //!
-//! `in_process` replaces the HTTP exchange with the same work done in this
-//! process (parse, render, encode PNG), the baseline the service is measured
-//! against.
+//! `in_process` replaces the HTTP exchange with the service's own render
+//! path in this process ([`render_request`]: the query, parsing, the
+//! service's limits, the render, the encoding), the baseline the service is
+//! measured against; each request counts with the status the service would
+//! have answered.
 
-use crate::output::Format;
-use crate::render::{render_scene, RenderOptions};
+use crate::service::{render_request, ServiceConfig};
 use crate::threads::Threads;
 use std::collections::BTreeMap;
 use std::fmt;
@@ -61,12 +62,9 @@ impl Url {
         Ok(Url { authority, target })
     }
 
-    /// A query parameter's value.
-    fn query_value(&self, key: &str) -> Option<&str> {
-        let (_, query) = self.target.split_once('?')?;
-        query
-            .split('&')
-            .find_map(|pair| pair.strip_prefix(key)?.strip_prefix('='))
+    /// What follows `?` in the target, without it; empty if none.
+    fn query(&self) -> &str {
+        self.target.split_once('?').map_or("", |(_, query)| query)
     }
 }
 
@@ -109,7 +107,7 @@ pub enum TransportError {
     Timeout,
     /// The server closed the connection before the whole response.
     Closed,
-    /// Not an HTTP/1.x response, or an in-process render failed.
+    /// Not an HTTP/1.x response.
     Protocol,
     Io,
     /// Closed before the first byte of the response; only ever reported as
@@ -369,6 +367,8 @@ struct Run<'a> {
     /// (the whole render runs on pool threads, which is measurably faster
     /// than driving the pool from outside).
     pool: Option<rayon::ThreadPool>,
+    /// In process: the limits of a `voxtrace serve` with its defaults.
+    service: ServiceConfig,
     started: Instant,
     /// The next request number to take.
     next: AtomicU64,
@@ -401,12 +401,11 @@ pub fn run(config: &LoadConfig) -> Result<LoadReport, String> {
     }
     let mut pool = None;
     let addr = if config.in_process {
-        let body = config.body.as_deref().ok_or("--in-process needs --scene")?;
-        let threads = crate::threads::pool(Threads::AllCores).map_err(|e| e.to_string())?;
-        threads
-            .install(|| crate::scene::parse(body))
-            .map_err(|e| format!("the scene: {e}"))?;
-        pool = Some(threads);
+        if config.body.is_none() {
+            return Err("--in-process needs --scene".into());
+        }
+        // One per core, as `voxtrace serve` by default.
+        pool = Some(crate::threads::pool(Threads::AllCores).map_err(|e| e.to_string())?);
         None
     } else {
         let addr = config
@@ -423,6 +422,7 @@ pub fn run(config: &LoadConfig) -> Result<LoadReport, String> {
         addr,
         request: request_bytes(config),
         pool,
+        service: ServiceConfig::default(),
         started: Instant::now(),
         next: AtomicU64::new(0),
         live: Live::default(),
@@ -644,52 +644,21 @@ fn read_response(
     })
 }
 
-/// The service's work without HTTP: parse, render on the pool, encode.
+/// The service's work without HTTP, through the service's own
+/// [`render_request`]: answered with the status the service would give.
 fn render_in_process(run: &Run, pool: &rayon::ThreadPool, due: Instant) -> Sample {
     let body = run.config.body.as_deref().unwrap_or_default();
-    let options = RenderOptions {
-        spp: run
-            .config
-            .url
-            .query_value("spp")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(1),
-        depth: run
-            .config
-            .url
-            .query_value("depth")
-            .and_then(|v| v.parse().ok()),
-        ..RenderOptions::default()
+    let query = run.config.url.query();
+    let (status, bytes, rays) = match render_request(query, body, &run.service, pool) {
+        Ok(encoded) => (200, encoded.bytes.len() as u64, encoded.rays),
+        Err(error) => (error.kind.status(), 0, 0),
     };
-    // Parsed on the pool too, as the service does.
-    let result = pool
-        .install(|| crate::scene::parse(body))
-        .ok()
-        .and_then(|scene| {
-            pool.install(|| render_scene(&scene, &options, &|_| {}))
-                .ok()
-        })
-        .and_then(|rendered| {
-            Some((
-                rendered.image.encode(Format::Png).ok()?,
-                rendered.stats.rays.total(),
-            ))
-        });
-    match result {
-        Some((png, rays)) => Sample {
-            outcome: Outcome::Status(200),
-            latency: due.elapsed(),
-            bytes: png.len() as u64,
-            rays,
-            missing_retry_after: false,
-        },
-        None => Sample {
-            outcome: Outcome::Error(TransportError::Protocol),
-            latency: due.elapsed(),
-            bytes: 0,
-            rays: 0,
-            missing_retry_after: false,
-        },
+    Sample {
+        outcome: Outcome::Status(status),
+        latency: due.elapsed(),
+        bytes,
+        rays,
+        missing_retry_after: false,
     }
 }
 
@@ -784,13 +753,13 @@ mod tests {
             (u.authority.as_str(), u.target.as_str()),
             ("127.0.0.1:8080", "/render?spp=2")
         );
-        assert_eq!(u.query_value("spp"), Some("2"));
-        assert_eq!(u.query_value("sp"), None);
+        assert_eq!(u.query(), "spp=2");
         let u = Url::parse("http://localhost").unwrap();
         assert_eq!(
             (u.authority.as_str(), u.target.as_str()),
             ("localhost:80", "/")
         );
+        assert_eq!(u.query(), "");
         assert_eq!(
             Url::parse("http://[::1]:9000/healthz").unwrap().authority,
             "[::1]:9000"
