@@ -90,8 +90,8 @@ pub struct EncodedRender {
 
 /// One `POST /render` without HTTP, admission, memory charges or a
 /// deadline: the query string and the scene text in, the encoded image out,
-/// through the very steps [`handle`] takes ([`RenderQuery::parse`],
-/// [`parse_scene`], [`check_limits`], the render on `pool`, [`encode`]), so
+/// through the very steps the `POST /render` handler takes (`RenderQuery::parse`,
+/// `parse_scene`, `check_limits`, the render on `pool`, `encode`), so
 /// whatever the service refuses is refused here with the same error.
 /// `voxtrace load --in-process` measures the service against it.
 pub fn render_request(
