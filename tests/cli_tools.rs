@@ -98,3 +98,39 @@ fn bad_arguments_exit_with_code_2() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("line 1, column 6"));
 }
+
+/// `--threads` means the same in every command: a count of at least one,
+/// all cores when left out; zero is a usage error, refused before any work
+/// with the same message, and each command's help says so.
+#[test]
+fn every_command_refuses_zero_threads_alike() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/testSample.txt");
+    let never = scratch("zero-threads.png");
+    let n = never.to_str().unwrap();
+    for command in [
+        vec!["render", scene, "-o", n],
+        vec!["serve", "--addr", "127.0.0.1:0"],
+        vec!["bench", "--scene", scene],
+        vec!["report", "--out", n],
+    ] {
+        let mut args = command.clone();
+        args.extend(["--threads", "0"]);
+        let out = voxtrace(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(
+                "invalid value '0' for '--threads <THREADS>': the thread count must be at least 1"
+            ),
+            "{args:?}: {stderr}"
+        );
+        assert!(!never.exists(), "{args:?} did work");
+        let help = voxtrace(&[command[0], "--help"]);
+        let help = String::from_utf8_lossy(&help.stdout);
+        assert!(
+            help.contains("at least 1 (default: all cores)"),
+            "{}: {help}",
+            command[0]
+        );
+    }
+}

@@ -7,16 +7,16 @@ use proptest::prelude::*;
 use voxtrace::geometry::{Ellipsoid, Ray};
 use voxtrace::index::{BruteForce, EmptySpace, SphereIndex, VoxelHashGrid};
 
-/// SplitMix64: scenes come from a seed proptest shrinks over.
-struct Rng(u64);
+/// The crate's generator with f32 helpers: scenes come from a seed
+/// proptest shrinks over.
+struct Rng(voxtrace::rng::Rng);
 
 impl Rng {
+    fn new(seed: u64) -> Self {
+        Rng(voxtrace::rng::Rng::new(seed))
+    }
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     fn unit(&mut self) -> f32 {
         (self.next() >> 40) as f32 / (1u64 << 24) as f32
@@ -61,7 +61,7 @@ enum Kind {
 }
 
 fn scene(kind: Kind, seed: u64) -> Vec<Ellipsoid<f32>> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let n = 150 + rng.below(150);
     let mut shapes = Vec::with_capacity(n);
     let sphere = |c: Vec3, r: f32| Ellipsoid::new(c, Vec3::splat(r));
@@ -191,7 +191,7 @@ fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
     let brute = BruteForce::new(shapes);
     let grid = VoxelHashGrid::new(shapes);
     let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
-    let mut rng = Rng(seed ^ 0x5eed);
+    let mut rng = Rng::new(seed ^ 0x5eed);
     for _ in 0..rays {
         let ray = ray(&mut rng, shapes);
         for (t_min, t_max) in [(0.0, f32::INFINITY), (1.0, f32::INFINITY), (0.0, 1.0)] {
@@ -322,7 +322,7 @@ fn check_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
     let brute = BruteForce::new(shapes);
     let grid = VoxelHashGrid::new(shapes);
     let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
-    let mut rng = Rng(seed ^ 0xb0b);
+    let mut rng = Rng::new(seed ^ 0xb0b);
     for _ in 0..bundles {
         let (origin, dirs) = bundle(&mut rng, shapes);
         for (t_min, t_max) in [
@@ -428,7 +428,7 @@ fn check_shadow_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
     let brute = BruteForce::new(shapes);
     let grid = VoxelHashGrid::new(shapes);
     let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
-    let mut rng = Rng(seed ^ 0x5ad0);
+    let mut rng = Rng::new(seed ^ 0x5ad0);
     for _ in 0..bundles {
         let (light, origins) = shadow_bundle(&mut rng, shapes);
         let want: Vec<bool> = origins
@@ -459,7 +459,7 @@ fn shadow_bundles_are_both_blocked_and_lit() {
     for (i, kind) in ALL_KINDS.into_iter().enumerate() {
         let shapes = scene(kind, 23 + i as u64);
         let grid = VoxelHashGrid::new(&shapes);
-        let mut rng = Rng(99 + i as u64);
+        let mut rng = Rng::new(99 + i as u64);
         let (mut blocked, mut lit) = (0, 0);
         for _ in 0..40 {
             let (light, origins) = shadow_bundle(&mut rng, &shapes);

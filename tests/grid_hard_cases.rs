@@ -5,7 +5,7 @@ use glam::{DVec3, Vec3};
 use std::time::{Duration, Instant};
 use voxtrace::geometry::{Ellipsoid, Ray};
 use voxtrace::index::{BruteForce, EmptySpace, SphereIndex, VoxelHashGrid};
-use voxtrace::tools::gen::Rng;
+use voxtrace::rng::Rng;
 
 const GENEROUS: Duration = Duration::from_secs(60);
 

@@ -10,6 +10,7 @@
 use glam::DVec3;
 use std::path::Path;
 use voxtrace::geometry::{Ellipsoid, Ray};
+use voxtrace::names::Named;
 use voxtrace::output::Image;
 use voxtrace::render::{
     eye_hit_map, eye_hit_map_from, render_in, IndexKind, PixelSampler, RayCounts, RenderOptions,
@@ -43,7 +44,7 @@ fn render64(scene: &Scene, options: &RenderOptions) -> (Image, RayCounts) {
 }
 
 fn every_index() -> &'static [IndexKind] {
-    <IndexKind as clap::ValueEnum>::value_variants()
+    <IndexKind as Named>::ALL
 }
 
 /// The corner eye-ray direction of pixel (column, row).

@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 use voxtrace::service::{Server, ServiceConfig};
-use voxtrace::tools::load::{self, LoadConfig, Stop, Url};
+use voxtrace::tools::load::{self, LoadConfig, Until, Url};
 
 fn serve(config: ServiceConfig) -> voxtrace::service::ServerHandle {
     let config = ServiceConfig {
@@ -12,12 +12,12 @@ fn serve(config: ServiceConfig) -> voxtrace::service::ServerHandle {
     Server::bind(config).unwrap().spawn().unwrap()
 }
 
-fn config(url: String, body: Option<Vec<u8>>, concurrency: usize, stop: Stop) -> LoadConfig {
+fn config(url: String, body: Option<Vec<u8>>, concurrency: usize, until: Until) -> LoadConfig {
     LoadConfig {
         url: Url::parse(&url).unwrap(),
         body,
         concurrency,
-        stop,
+        until,
         rate: None,
         timeout: Duration::from_secs(30),
         in_process: false,
@@ -37,7 +37,7 @@ fn sample() -> Vec<u8> {
 fn closed_loop_counts_renders_rays_and_statuses() {
     let server = serve(ServiceConfig::default());
     let url = format!("http://{}/render?spp=1", server.addr());
-    let cfg = config(url, Some(sample()), 4, Stop::Requests(12));
+    let cfg = config(url, Some(sample()), 4, Until::Requests(12));
     let report = load::run(&cfg).unwrap();
     assert_eq!(report.requests, 12);
     assert_eq!(report.status.get(&200), Some(&12));
@@ -57,7 +57,7 @@ fn closed_loop_counts_renders_rays_and_statuses() {
     // The same work in process reports the same rays per render.
     let in_process = load::run(&LoadConfig {
         in_process: true,
-        stop: Stop::Requests(2),
+        until: Until::Requests(2),
         ..cfg
     })
     .unwrap();
@@ -73,7 +73,7 @@ fn open_loop_keeps_its_schedule_and_counts_rejections_and_transport_errors() {
     let healthz = format!("http://{}/healthz", server.addr());
     let report = load::run(&LoadConfig {
         rate: Some(200.0),
-        ..config(healthz, None, 2, Stop::After(Duration::from_millis(500)))
+        ..config(healthz, None, 2, Until::Elapsed(Duration::from_millis(500)))
     })
     .unwrap();
     assert_eq!(report.requests, 100, "200 req/s for 0.5 s");
@@ -86,7 +86,7 @@ fn open_loop_keeps_its_schedule_and_counts_rejections_and_transport_errors() {
         render,
         Some(b"NEAR x\n".to_vec()),
         2,
-        Stop::Requests(6),
+        Until::Requests(6),
     ))
     .unwrap();
     assert_eq!((report.status.get(&400), report.renders), (Some(&6), 0));
@@ -97,7 +97,7 @@ fn open_loop_keeps_its_schedule_and_counts_rejections_and_transport_errors() {
         format!("http://{addr}/healthz"),
         None,
         1,
-        Stop::Requests(3),
+        Until::Requests(3),
     ))
     .unwrap();
     assert_eq!(report.errors.get("connect"), Some(&3));
@@ -112,9 +112,40 @@ fn a_kept_alive_connection_closed_by_the_server_while_idle_is_replaced_not_count
     let healthz = format!("http://{}/healthz", server.addr());
     let report = load::run(&LoadConfig {
         rate: Some(10.0),
-        ..config(healthz, None, 1, Stop::After(Duration::from_millis(600)))
+        ..config(healthz, None, 1, Until::Elapsed(Duration::from_millis(600)))
     })
     .unwrap();
     assert_eq!(report.status.get(&200), Some(&6), "{report}");
     assert!(report.errors.is_empty(), "{:?}", report.errors);
+}
+
+/// In process and over HTTP, a request runs the service's one render path:
+/// what the service refuses (a bad spp, a broken scene) is refused in
+/// process with the same status, and nothing is rendered.
+#[test]
+fn in_process_refuses_what_the_service_refuses() {
+    let server = serve(ServiceConfig::default());
+    for (query, body) in [
+        ("spp=0", sample()),
+        ("spp=two", sample()),
+        ("depth=65", sample()),
+        ("format=gif", sample()),
+        ("", b"NEAR x\n".to_vec()),
+    ] {
+        let url = format!("http://{}/render?{query}", server.addr());
+        let over_http = config(url, Some(body), 1, Until::Requests(2));
+        let in_process = LoadConfig {
+            in_process: true,
+            ..over_http.clone()
+        };
+        for cfg in [over_http, in_process] {
+            let report = load::run(&cfg).unwrap();
+            assert_eq!(
+                (report.status.get(&400), report.renders),
+                (Some(&2), 0),
+                "{query} in process: {}",
+                cfg.in_process
+            );
+        }
+    }
 }

@@ -1,6 +1,7 @@
 //! `voxtrace bench`.
 
 use super::CliError;
+use crate::threads::Threads;
 use crate::tools::bench::{
     bench_file, bench_text, builtin_names, builtin_scene, markdown_table, BenchResult,
 };
@@ -16,9 +17,9 @@ pub struct BenchArgs {
     /// Print a JSON list instead of a table.
     #[arg(long)]
     json: bool,
-    /// Threads (default: all cores).
+    /// Threads, at least 1 (default: all cores).
     #[arg(long)]
-    threads: Option<usize>,
+    threads: Option<Threads>,
     /// Skip the baselines (the grid probing every cell, and brute force).
     #[arg(long)]
     no_baselines: bool,

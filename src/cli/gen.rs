@@ -1,5 +1,6 @@
 //! `voxtrace gen`.
 
+use super::choice::choice;
 use super::CliError;
 use crate::limits;
 use crate::tools::gen::{generate, Distribution, GenOptions};
@@ -12,7 +13,7 @@ pub struct GenArgs {
     #[arg(long)]
     spheres: usize,
     /// How sizes and positions are drawn.
-    #[arg(long, value_enum, default_value_t = Distribution::Uniform)]
+    #[arg(long, value_parser = choice(distribution_help), default_value_t = Distribution::Uniform)]
     dist: Distribution,
     /// Random seed; the same seed gives the same file.
     #[arg(long, default_value_t = 1)]
@@ -29,6 +30,16 @@ pub struct GenArgs {
     /// Output scene file (`-` for stdout).
     #[arg(short, long)]
     output: PathBuf,
+}
+
+fn distribution_help(distribution: Distribution) -> &'static str {
+    match distribution {
+        Distribution::Uniform => "Uniform in the frustum, radii within ±20 % of one size",
+        Distribution::Mixed => "Uniform in the frustum, radii log-uniform over three decades",
+        Distribution::Clustered => "Dense round clumps (√n of them) in empty space",
+        Distribution::Clumps => "About ∛n clumps of very unequal population (weights u³) and radii (log-uniform over [`CLUMP_RADII`]), each with its own sphere size from its own fill, 2 % dust through the frustum, and a floor sphere of radius 1000 under it all",
+        Distribution::Straddle => "Like uniform, but radii within ±20 % of a size whose diameter is a power of four: where fixed size bands would split them in two",
+    }
 }
 
 pub fn run(args: GenArgs) -> Result<(), CliError> {

@@ -1,7 +1,7 @@
 //! `voxtrace load`.
 
 use super::CliError;
-use crate::tools::load::{self, LoadConfig, Stop, Url};
+use crate::tools::load::{self, LoadConfig, Until, Url};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -47,16 +47,16 @@ pub fn run(args: LoadArgs) -> Result<(), CliError> {
         ),
         None => None,
     };
-    let stop = match (args.requests, &args.duration) {
-        (Some(n), _) => Stop::Requests(n),
-        (None, Some(d)) => Stop::After(load::parse_duration(d).map_err(CliError::Usage)?),
-        (None, None) => Stop::After(Duration::from_secs(10)),
+    let until = match (args.requests, &args.duration) {
+        (Some(n), _) => Until::Requests(n),
+        (None, Some(d)) => Until::Elapsed(load::parse_duration(d).map_err(CliError::Usage)?),
+        (None, None) => Until::Elapsed(Duration::from_secs(10)),
     };
     let config = LoadConfig {
         url,
         body,
         concurrency: args.concurrency,
-        stop,
+        until,
         rate: args.rate,
         timeout: load::parse_duration(&args.timeout).map_err(CliError::Usage)?,
         in_process: args.in_process,

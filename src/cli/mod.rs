@@ -2,14 +2,17 @@
 //! Each subcommand's arguments live next to the code that runs it.
 
 mod bench;
+mod choice;
 mod gen;
 mod load;
 mod output_path;
 mod refusal;
 mod render;
+mod report;
 mod scene_input;
 mod serve;
 
+use crate::threads::Threads;
 use clap::{Parser, Subcommand};
 use std::fmt;
 use std::process::ExitCode;
@@ -38,7 +41,7 @@ enum Command {
     /// Measure parse, index build and ray speed against brute force.
     Bench(bench::BenchArgs),
     /// Render a fixed suite under variants and report speed against error.
-    Report(crate::tools::report::ReportArgs),
+    Report(report::ReportArgs),
 }
 
 /// Why a command failed; decides the exit code.
@@ -79,7 +82,16 @@ impl fmt::Display for CliError {
 /// Runs the command line and returns the process's exit code: 0 on success,
 /// 2 for a scene or usage error or a refusal, 1 for any other failure.
 pub fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    run(std::env::args_os())
+}
+
+/// [`main`] on the arguments `args`, the program's name first.
+pub fn run<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) => {
             let _ = e.print();
@@ -92,9 +104,7 @@ pub fn main() -> ExitCode {
         Command::Load(args) => load::run(args),
         Command::Gen(args) => gen::run(args),
         Command::Bench(args) => bench::run(args),
-        Command::Report(args) => {
-            crate::tools::report::run(args).map_err(|e| CliError::Failed(e.to_string()))
-        }
+        Command::Report(args) => report::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -105,13 +115,7 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// A rayon pool of `threads` threads (all cores when `None`).
-pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
-    if threads == Some(0) {
-        return Err(CliError::Usage("--threads must be at least 1".into()));
-    }
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.unwrap_or(0))
-        .build()
-        .map_err(|e| CliError::Failed(format!("cannot start the render threads: {e}")))
+/// The pool a command runs in: `--threads` threads, or one per core.
+fn thread_pool(threads: Option<Threads>) -> Result<rayon::ThreadPool, CliError> {
+    crate::threads::pool(threads.unwrap_or_default()).map_err(|e| CliError::Failed(e.to_string()))
 }

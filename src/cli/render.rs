@@ -1,11 +1,13 @@
 //! `voxtrace render`.
 
+use super::choice::choice;
 use super::output_path::{refuse_overwriting, refuse_terminal, Destination};
 use super::scene_input::read_scene;
 use super::CliError;
 use crate::limits;
 use crate::output::Format;
 use crate::render::{render_scene, IndexKind, RenderOptions, Rendered, SpecularModel};
+use crate::threads::Threads;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -30,21 +32,39 @@ pub struct RenderArgs {
     /// Bounces of reflection/refraction (default: 3 classic, 16 browser dialect).
     #[arg(long)]
     depth: Option<u32>,
-    /// Render threads (default: all cores). The image does not depend on it.
+    /// Render threads, at least 1 (default: all cores). The image does not depend on it.
     #[arg(long)]
-    threads: Option<usize>,
+    threads: Option<Threads>,
     /// Print parse/build/render times and rays by kind on stderr.
     #[arg(long)]
     stats: bool,
     /// Candidate search.
-    #[arg(long, value_enum, default_value_t = IndexKind::default())]
+    #[arg(long, value_parser = choice(index_help), default_value_t = IndexKind::default())]
     index: IndexKind,
     /// Override the dialect's specular model.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice(specular_help))]
     specular: Option<SpecularModel>,
     /// Stop recursing once a ray's weight cannot change the 8-bit output.
     #[arg(long)]
     adaptive: bool,
+}
+
+fn index_help(index: IndexKind) -> &'static str {
+    match index {
+        IndexKind::Grid => "The multi-resolution voxel hash grid",
+        IndexKind::Brute => "Test every sphere (the exactness oracle)",
+    }
+}
+
+fn specular_help(model: SpecularModel) -> &'static str {
+    match model {
+        SpecularModel::Phong => {
+            "`max(0, R·V)^n`, R the light mirrored about the normal (the classic model's own)"
+        }
+        SpecularModel::Blinn => {
+            "`max(0, N·H)^n`, H halfway between light and viewer (the browser model's own)"
+        }
+    }
 }
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {

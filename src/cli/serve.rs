@@ -3,6 +3,7 @@
 use super::CliError;
 use crate::limits;
 use crate::service::{Server, ServiceConfig};
+use crate::threads::Threads;
 use std::io::Write;
 use std::time::Duration;
 
@@ -61,9 +62,9 @@ pub struct ServeArgs {
     /// client that takes it slower is cut off.
     #[arg(long, default_value_t = limits::DEFAULT_WRITE_TIMEOUT_MS)]
     write_timeout_ms: u64,
-    /// Render threads (default: all cores).
+    /// Render threads, at least 1 (default: all cores).
     #[arg(long)]
-    threads: Option<usize>,
+    threads: Option<Threads>,
 }
 
 impl ServeArgs {
@@ -86,7 +87,7 @@ impl ServeArgs {
             head_timeout: ms(self.head_timeout_ms),
             body_timeout: ms(self.body_timeout_ms),
             write_timeout: ms(self.write_timeout_ms),
-            threads: self.threads,
+            threads: self.threads.unwrap_or_default(),
         }
     }
 }

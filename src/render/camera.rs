@@ -1,5 +1,6 @@
 //! Eye rays: from the origin through the image plane z = −near.
 
+use crate::rng::{Rng, GOLDEN_GAMMA};
 use crate::scene::Camera;
 use glam::DVec3;
 
@@ -81,32 +82,24 @@ impl PixelSampler {
     }
 }
 
-/// A small deterministic generator seeded by the pixel, so images do not
-/// depend on which thread renders which row (SplitMix64).
+/// A generator seeded by the pixel, so images do not depend on which
+/// thread renders which row.
 struct PixelRng {
-    state: u64,
+    rng: Rng,
     offset: Option<u32>,
 }
 
 impl PixelRng {
     fn new(column: u32, row: u32) -> Self {
         PixelRng {
-            state: (u64::from(row) << 32 | u64::from(column)).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+            rng: Rng::new((u64::from(row) << 32 | u64::from(column)).wrapping_mul(GOLDEN_GAMMA)),
             offset: None,
         }
     }
 
-    fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
     /// Uniform in [0, 1).
     fn next(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        self.rng.unit()
     }
 
     /// One random shift in [0, n) per pixel, for pairing N-rooks strata.
@@ -114,7 +107,7 @@ impl PixelRng {
         match self.offset {
             Some(o) => o,
             None => {
-                let o = (self.next_u64() % u64::from(n)) as u32;
+                let o = (self.rng.next_u64() % u64::from(n)) as u32;
                 self.offset = Some(o);
                 o
             }

@@ -23,7 +23,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// Which specular highlight to use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpecularModel {
     /// `max(0, R·V)^n`, R the light mirrored about the normal (the classic model's own).
     Phong,
@@ -32,7 +32,7 @@ pub enum SpecularModel {
 }
 
 /// Which candidate search to use.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum IndexKind {
     /// The multi-resolution voxel hash grid.
     #[default]

@@ -42,7 +42,7 @@ struct Waiter {
 
 /// Why a render was not admitted.
 #[derive(Debug, PartialEq, Eq)]
-pub enum Refused {
+pub enum NotAdmitted {
     /// Every slot busy and the queue full.
     QueueFull,
     /// Waited in the queue until the deadline.
@@ -75,11 +75,11 @@ impl Admission {
 
     /// Takes a place for a render, at once or not at all: refused when
     /// `slots` renders run and `queue` more hold places.
-    pub fn reserve(&self) -> Result<Place<'_>, Refused> {
+    pub fn reserve(&self) -> Result<Place<'_>, NotAdmitted> {
         let mut gate = self.lock();
         let counts = &mut gate.counts;
         if counts.running + counts.waiting >= self.slots + self.queue {
-            return Err(Refused::QueueFull);
+            return Err(NotAdmitted::QueueFull);
         }
         counts.waiting += 1;
         Ok(Place {
@@ -126,13 +126,13 @@ impl<'a> Place<'a> {
     /// While it waits, every `poll` (or whenever it wakes before its turn),
     /// and once more when it has its slot, it asks `gone` whether the client
     /// has left; if so it gives its place (or slot) back at once and the
-    /// render never runs: [`Refused::Abandoned`].
+    /// render never runs: [`NotAdmitted::Abandoned`].
     pub fn enter(
         mut self,
         deadline: Instant,
         poll: Duration,
         mut gone: impl FnMut() -> bool,
-    ) -> Result<Ticket<'a>, Refused> {
+    ) -> Result<Ticket<'a>, NotAdmitted> {
         let admission = self.gate;
         let id = {
             let mut gate = admission.lock();
@@ -159,7 +159,7 @@ impl<'a> Place<'a> {
                     // Given back (and the next in line woken) if dropped here.
                     let ticket = Ticket(admission);
                     return if gone() {
-                        Err(Refused::Abandoned)
+                        Err(NotAdmitted::Abandoned)
                     } else {
                         Ok(ticket)
                     };
@@ -168,10 +168,10 @@ impl<'a> Place<'a> {
             };
             // Dropping the place takes it out of the line.
             if left.is_zero() {
-                return Err(Refused::WaitedTooLong);
+                return Err(NotAdmitted::WaitedTooLong);
             }
             if asked && gone() {
-                return Err(Refused::Abandoned);
+                return Err(NotAdmitted::Abandoned);
             }
             asked = true;
             thread::park_timeout(left.min(poll));
@@ -278,7 +278,7 @@ mod tests {
 
     const POLL: Duration = Duration::from_millis(5);
 
-    fn enter(gate: &Admission, deadline: Instant) -> Result<Ticket<'_>, Refused> {
+    fn enter(gate: &Admission, deadline: Instant) -> Result<Ticket<'_>, NotAdmitted> {
         gate.reserve()?.enter(deadline, POLL, || false)
     }
 
@@ -300,7 +300,7 @@ mod tests {
             while gate.counts().waiting == 0 {
                 std::thread::yield_now();
             }
-            assert_eq!(enter(&gate, soon()).err(), Some(Refused::QueueFull));
+            assert_eq!(enter(&gate, soon()).err(), Some(NotAdmitted::QueueFull));
             drop(first);
             assert_eq!(waiter.join().unwrap(), Ok(()));
         });
@@ -312,7 +312,7 @@ mod tests {
         let gate = Admission::new(1, 1);
         let parsing = gate.reserve().unwrap();
         let second = gate.reserve().unwrap();
-        assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
+        assert_eq!(gate.reserve().err(), Some(NotAdmitted::QueueFull));
         drop(parsing);
         assert_eq!(gate.counts().waiting, 1);
         let ticket = second.enter(Instant::now(), POLL, || false).unwrap();
@@ -333,7 +333,7 @@ mod tests {
         let _held = enter(&gate, Instant::now()).unwrap();
         let started = Instant::now();
         let refused = enter(&gate, started + Duration::from_millis(30)).err();
-        assert_eq!(refused, Some(Refused::WaitedTooLong));
+        assert_eq!(refused, Some(NotAdmitted::WaitedTooLong));
         assert!(started.elapsed() >= Duration::from_millis(30));
         assert_eq!(
             gate.counts(),
@@ -362,9 +362,9 @@ mod tests {
             while gate.counts().waiting == 0 {
                 std::thread::yield_now();
             }
-            assert_eq!(gate.reserve().err(), Some(Refused::QueueFull));
+            assert_eq!(gate.reserve().err(), Some(NotAdmitted::QueueFull));
             left.store(true, Ordering::Relaxed);
-            assert_eq!(waiter.join().unwrap(), Err(Refused::Abandoned));
+            assert_eq!(waiter.join().unwrap(), Err(NotAdmitted::Abandoned));
         });
         // The slot was never taken; the place is free for another render.
         assert_eq!(
@@ -384,7 +384,7 @@ mod tests {
         let gate = Admission::new(1, 0);
         let place = gate.reserve().unwrap();
         let refused = place.enter(Instant::now(), POLL, || true).err();
-        assert_eq!(refused, Some(Refused::Abandoned));
+        assert_eq!(refused, Some(NotAdmitted::Abandoned));
         assert_eq!(gate.counts(), Counts::default());
         assert!(enter(&gate, Instant::now()).is_ok());
     }

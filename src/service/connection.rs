@@ -2,8 +2,8 @@
 //! kept-alive connection, each read, answered and counted.
 
 use super::error::{ApiError, ApiErrorKind};
-use super::http::{self, BodyFraming, Connection, ReadError, RequestHead, Response};
-use super::registry::Slot;
+use super::http::{self, BodyFraming, Connection, NoRequest, RequestHead, Response};
+use super::registry::Registration;
 use super::routes;
 use super::State;
 use std::io;
@@ -20,17 +20,22 @@ enum Step {
 }
 
 /// Serves requests on one connection until it closes, times out, or the
-/// server stops. `slot` is the connection's place among the open ones.
-pub fn serve(state: &State, slot: &Slot, stream: Arc<TcpStream>, accepted: Instant) {
+/// server stops. `registration` is its entry among the open connections.
+pub fn serve(
+    state: &State,
+    registration: &Registration,
+    stream: Arc<TcpStream>,
+    accepted: Instant,
+) {
     let _ = stream.set_nodelay(true);
     let mut conn = Connection::new(stream, accepted);
     let timeouts = state.config.timeouts();
-    while slot.await_request() {
+    while registration.await_request() {
         let head = match conn.read_head(&timeouts) {
             Ok(head) => head,
             Err(error) => return refuse(state, &conn, error),
         };
-        if !answer(state, slot, &mut conn, &head) {
+        if !answer(state, registration, &mut conn, &head) {
             return;
         }
         conn.request_done();
@@ -43,7 +48,7 @@ pub fn serve(state: &State, slot: &Slot, stream: Arc<TcpStream>, accepted: Insta
 /// connection closes.
 pub fn serve_reserve(
     state: &State,
-    slot: &Slot,
+    registration: &Registration,
     stream: Arc<TcpStream>,
     accepted: Instant,
     refusal: ApiErrorKind,
@@ -56,7 +61,7 @@ pub fn serve_reserve(
     };
     let head = match conn.read_head(&timeouts) {
         Ok(head) => head,
-        Err(ReadError::Io) => return,
+        Err(NoRequest::Io) => return,
         Err(_) => {
             let response = ApiError::from(refusal).into_response(false);
             state.metrics.response("connection", &response);
@@ -64,7 +69,7 @@ pub fn serve_reserve(
             return;
         }
     };
-    slot.request_received();
+    registration.request_received();
     let route = routes::label(&head.path);
     let bodiless = matches!(
         head.body_framing(),
@@ -83,13 +88,13 @@ pub fn serve_reserve(
 
 /// No request could be read: say why, if there is anyone to tell, in plain
 /// text (there are no headers to ask for JSON), and close.
-fn refuse(state: &State, conn: &Connection, error: ReadError) {
+fn refuse(state: &State, conn: &Connection, error: NoRequest) {
     let kind = match error {
-        ReadError::Closed | ReadError::Io => return,
-        ReadError::Stalled => ApiErrorKind::RequestTimeout { what: "request" },
-        ReadError::HeadTooLarge => ApiErrorKind::HeadTooLarge,
-        ReadError::Malformed(why) => ApiErrorKind::BadRequest(why),
-        ReadError::OverBudget => ApiErrorKind::BodyMemory,
+        NoRequest::Closed | NoRequest::Io => return,
+        NoRequest::Stalled => ApiErrorKind::RequestTimeout { what: "request" },
+        NoRequest::HeadTooLarge => ApiErrorKind::HeadTooLarge,
+        NoRequest::Malformed(why) => ApiErrorKind::BadRequest(why),
+        NoRequest::OverBudget => ApiErrorKind::BodyMemory,
     };
     let response = ApiError::from(kind).into_response(false);
     state.metrics.response("other", &response);
@@ -117,9 +122,14 @@ fn write_response(
 }
 
 /// Answers one request; whether the connection stays open for the next.
-fn answer(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead) -> bool {
+fn answer(
+    state: &State,
+    registration: &Registration,
+    conn: &mut Connection,
+    head: &RequestHead,
+) -> bool {
     let route = routes::label(&head.path);
-    match handle(state, slot, conn, head) {
+    match handle(state, registration, conn, head) {
         Step::Gone => {
             // 499: nginx's code for "client closed the request".
             state.metrics.request(route, 499);
@@ -135,7 +145,12 @@ fn answer(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
 }
 
 /// Reads the body the head announces, then routes the request.
-fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead) -> Step {
+fn handle(
+    state: &State,
+    registration: &Registration,
+    conn: &mut Connection,
+    head: &RequestHead,
+) -> Step {
     let json = head.accepts_json();
     let fail = |kind: ApiErrorKind, keep: bool| Step::Reply {
         response: ApiError::from(kind).into_response(json),
@@ -195,7 +210,7 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
     };
     let scene = match received {
         Ok(scene) => scene.map(|text| (text, charge)),
-        Err(ReadError::Stalled) => {
+        Err(NoRequest::Stalled) => {
             return fail(
                 ApiErrorKind::RequestTimeout {
                     what: "request body",
@@ -203,10 +218,10 @@ fn handle(state: &State, slot: &Slot, conn: &mut Connection, head: &RequestHead)
                 false,
             )
         }
-        Err(ReadError::OverBudget) => return fail(ApiErrorKind::BodyMemory, true),
+        Err(NoRequest::OverBudget) => return fail(ApiErrorKind::BodyMemory, true),
         Err(_) => return Step::Gone,
     };
-    slot.request_received();
+    registration.request_received();
     if head.minor_version >= 1 && head.header("host").is_none() {
         return fail(
             ApiErrorKind::BadRequest("an HTTP/1.1 request needs a Host header".into()),

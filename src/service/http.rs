@@ -43,7 +43,7 @@ pub struct Timeouts {
 
 /// Why no request could be read.
 #[derive(Debug)]
-pub enum ReadError {
+pub enum NoRequest {
     /// The client closed the connection or went idle, or the server is
     /// stopping, between requests: close without a word.
     Closed,
@@ -188,7 +188,7 @@ impl Connection {
     /// of the connection becoming ready (its accept, or the previous
     /// response), the rest within `timeouts.head` of the first byte. What
     /// already arrived is always read once before a deadline is judged.
-    pub fn read_head(&mut self, timeouts: &Timeouts) -> Result<RequestHead, ReadError> {
+    pub fn read_head(&mut self, timeouts: &Timeouts) -> Result<RequestHead, NoRequest> {
         let mut head_started = (!self.pending.is_empty()).then(Instant::now);
         let mut read_once = false;
         loop {
@@ -204,30 +204,30 @@ impl Connection {
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() && read_once {
                 return Err(match head_started {
-                    None => ReadError::Closed,
-                    Some(_) => ReadError::Stalled,
+                    None => NoRequest::Closed,
+                    Some(_) => NoRequest::Stalled,
                 });
             }
             read_once = true;
             match self.read_some(left) {
-                Ok(0) => return Err(ReadError::Closed),
+                Ok(0) => return Err(NoRequest::Closed),
                 Ok(_) => {
                     head_started.get_or_insert_with(Instant::now);
                 }
                 Err(e) if is_timeout(&e) => {}
-                Err(_) => return Err(ReadError::Io),
+                Err(_) => return Err(NoRequest::Io),
             }
         }
     }
 
     /// Parses the pending bytes: a whole head (consumed), `None` if more
     /// bytes are needed, or why they can never make a head.
-    fn parse_pending(&mut self) -> Result<Option<RequestHead>, ReadError> {
+    fn parse_pending(&mut self) -> Result<Option<RequestHead>, NoRequest> {
         let mut headers = [httparse::EMPTY_HEADER; limits::MAX_HEADERS];
         let mut request = httparse::Request::new(&mut headers);
         match request.parse(&self.pending) {
             Ok(httparse::Status::Complete(len)) if len > limits::MAX_HEAD_BYTES => {
-                Err(ReadError::HeadTooLarge)
+                Err(NoRequest::HeadTooLarge)
             }
             Ok(httparse::Status::Complete(len)) => {
                 let head = to_head(&request);
@@ -235,11 +235,11 @@ impl Connection {
                 Ok(Some(head))
             }
             Ok(httparse::Status::Partial) if self.pending.len() > limits::MAX_HEAD_BYTES => {
-                Err(ReadError::HeadTooLarge)
+                Err(NoRequest::HeadTooLarge)
             }
             Ok(httparse::Status::Partial) => Ok(None),
-            Err(httparse::Error::TooManyHeaders) => Err(ReadError::HeadTooLarge),
-            Err(e) => Err(ReadError::Malformed(format!("malformed request head: {e}"))),
+            Err(httparse::Error::TooManyHeaders) => Err(NoRequest::HeadTooLarge),
+            Err(e) => Err(NoRequest::Malformed(format!("malformed request head: {e}"))),
         }
     }
 
@@ -251,7 +251,7 @@ impl Connection {
         len: usize,
         timeout: Duration,
         charge: &mut BodyCharge,
-    ) -> Result<Vec<u8>, ReadError> {
+    ) -> Result<Vec<u8>, NoRequest> {
         let deadline = Instant::now() + timeout;
         let mut body = Vec::new();
         let mut filled = 0;
@@ -261,7 +261,7 @@ impl Connection {
                 if !charge.grow(more as u64) {
                     drop(body);
                     self.discard(len - filled, deadline)?;
-                    return Err(ReadError::OverBudget);
+                    return Err(NoRequest::OverBudget);
                 }
                 body.reserve_exact(more);
                 body.resize(filled + more, 0);
@@ -281,11 +281,11 @@ impl Connection {
 
     /// Reads and throws away `len` body bytes within `timeout`: a body no
     /// route needs is never held.
-    pub fn discard_body(&mut self, len: usize, timeout: Duration) -> Result<(), ReadError> {
+    pub fn discard_body(&mut self, len: usize, timeout: Duration) -> Result<(), NoRequest> {
         self.discard(len, Instant::now() + timeout)
     }
 
-    fn discard(&mut self, len: usize, deadline: Instant) -> Result<(), ReadError> {
+    fn discard(&mut self, len: usize, deadline: Instant) -> Result<(), NoRequest> {
         let from_pending = len.min(self.pending.len());
         self.pending.drain(..from_pending);
         let mut left = len - from_pending;
@@ -298,19 +298,19 @@ impl Connection {
     }
 
     /// One read of at most `buf.len()` bytes (at least one) before `deadline`.
-    fn read_before(&mut self, deadline: Instant, buf: &mut [u8]) -> Result<usize, ReadError> {
+    fn read_before(&mut self, deadline: Instant, buf: &mut [u8]) -> Result<usize, NoRequest> {
         loop {
             let Some(left) = deadline.checked_duration_since(Instant::now()) else {
-                return Err(ReadError::Stalled);
+                return Err(NoRequest::Stalled);
             };
             self.stream
                 .set_read_timeout(Some(left.max(MIN_SOCKET_TIMEOUT)))
-                .map_err(|_| ReadError::Io)?;
+                .map_err(|_| NoRequest::Io)?;
             match (&*self.stream).read(buf) {
-                Ok(0) => return Err(ReadError::Closed),
+                Ok(0) => return Err(NoRequest::Closed),
                 Ok(n) => return Ok(n),
                 Err(e) if is_timeout(&e) => {}
-                Err(_) => return Err(ReadError::Io),
+                Err(_) => return Err(NoRequest::Io),
             }
         }
     }

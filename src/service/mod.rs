@@ -28,12 +28,15 @@ mod registry;
 mod render_route;
 mod routes;
 
+pub use error::{ApiError, ApiErrorKind};
+pub use render_route::{render_request, EncodedRender};
+
 use crate::limits;
+use crate::threads::{self, Threads};
 use admission::{Admission, BodyBudget};
-use error::{ApiError, ApiErrorKind};
 use memory_budget::MemoryBudget;
 use metrics::Metrics;
-use registry::{Caps, Over, Place, Registry};
+use registry::{Caps, Over, Quota, Registry};
 use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::panic::{self, AssertUnwindSafe};
@@ -71,8 +74,8 @@ pub struct ServiceConfig {
     pub head_timeout: Duration,
     pub body_timeout: Duration,
     pub write_timeout: Duration,
-    /// Render threads (all cores when `None`).
-    pub threads: Option<usize>,
+    /// Render threads.
+    pub threads: Threads,
 }
 
 impl Default for ServiceConfig {
@@ -95,7 +98,7 @@ impl Default for ServiceConfig {
             head_timeout: ms(limits::DEFAULT_HEAD_TIMEOUT_MS),
             body_timeout: ms(limits::DEFAULT_BODY_TIMEOUT_MS),
             write_timeout: ms(limits::DEFAULT_WRITE_TIMEOUT_MS),
-            threads: None,
+            threads: Threads::AllCores,
         }
     }
 }
@@ -133,9 +136,6 @@ impl ServiceConfig {
         }
         if self.body_memory < self.max_body {
             return invalid("--body-memory must be at least --max-body");
-        }
-        if self.threads == Some(0) {
-            return invalid("--threads must be at least 1");
         }
         Ok(())
     }
@@ -177,11 +177,7 @@ impl Server {
             )
         })?;
         let listener = TcpListener::bind(addr)?;
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(config.threads.unwrap_or(0))
-            .thread_name(|i| format!("voxtrace-render-{i}"))
-            .build()
-            .map_err(io::Error::other)?;
+        let pool = threads::pool(config.threads).map_err(io::Error::other)?;
         // Measured once the pool's threads exist: what the service holds idle.
         let baseline = memory_budget::resident_bytes().unwrap_or(0);
         if config.memory_budget < baseline + config.max_body {
@@ -252,12 +248,12 @@ impl Server {
         };
         let stream = Arc::new(stream);
         let caps = state.config.caps();
-        let (id, place) = match state.connections.open(Arc::clone(&stream), peer.ip(), caps) {
+        let (id, quota) = match state.connections.open(Arc::clone(&stream), peer.ip(), caps) {
             Ok(registered) => registered,
-            Err(registry::Refused::Full(over)) => {
+            Err(registry::NotRegistered::Full(over)) => {
                 return turn_away(state, &stream, over_limit(&state.config, over))
             }
-            Err(registry::Refused::Stopping) => {
+            Err(registry::NotRegistered::Stopping) => {
                 return turn_away(state, &stream, over_limit(&state.config, Over::Total))
             }
         };
@@ -266,10 +262,10 @@ impl Server {
         let spawned = thread::Builder::new()
             .name("voxtrace-conn".into())
             .stack_size(CONNECTION_STACK_BYTES)
-            .spawn(move || serve_connection(&shared, id, place, reader, accepted));
+            .spawn(move || serve_connection(&shared, id, quota, reader, accepted));
         if spawned.is_err() {
             // The thread never ran: end the connection's registration here.
-            drop(state.connections.slot(id));
+            drop(state.connections.registration(id));
             turn_away(state, &stream, over_limit(&state.config, Over::Total));
         }
     }
@@ -305,25 +301,25 @@ fn over_limit(config: &ServiceConfig, over: Over) -> ApiErrorKind {
 fn serve_connection(
     state: &State,
     id: u64,
-    place: Place,
+    quota: Quota,
     stream: Arc<TcpStream>,
     accepted: Instant,
 ) {
-    let slot = state.connections.slot(id);
+    let registration = state.connections.registration(id);
     // A bug that panics while serving one connection ends that connection
     // only. Its registration, admission ticket and counters are released by
     // their destructors during the unwind.
-    let served = panic::catch_unwind(AssertUnwindSafe(|| match place {
-        Place::Regular => connection::serve(state, &slot, stream, accepted),
-        Place::Reserve(over) => {
+    let served = panic::catch_unwind(AssertUnwindSafe(|| match quota {
+        Quota::Regular => connection::serve(state, &registration, stream, accepted),
+        Quota::Reserve(over) => {
             let refusal = over_limit(&state.config, over);
-            connection::serve_reserve(state, &slot, stream, accepted, refusal)
+            connection::serve_reserve(state, &registration, stream, accepted, refusal)
         }
     }));
     if served.is_err() {
         state.metrics.request("panic", 500);
     }
-    drop(slot);
+    drop(registration);
     state.metrics.connection_closed();
 }
 

@@ -56,9 +56,10 @@ pub struct Caps {
     pub reserve: usize,
 }
 
-/// Where a registered connection was given a place.
+/// Which caps a registered connection counts against: the regular ones,
+/// or the reserve's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Place {
+pub enum Quota {
     Regular,
     /// In the reserve, because of this cap.
     Reserve(Over),
@@ -73,7 +74,7 @@ pub enum Over {
 
 /// Why a connection was not registered.
 #[derive(Debug, PartialEq, Eq)]
-pub enum Refused {
+pub enum NotRegistered {
     /// Over this cap, and the reserve is full too.
     Full(Over),
     /// The server is stopping.
@@ -81,7 +82,7 @@ pub enum Refused {
 }
 
 /// A registered connection; leaves the registry when dropped.
-pub struct Slot<'a> {
+pub struct Registration<'a> {
     registry: &'a Registry,
     id: u64,
 }
@@ -94,10 +95,10 @@ impl Registry {
         stream: Arc<TcpStream>,
         peer: IpAddr,
         caps: Caps,
-    ) -> Result<(u64, Place), Refused> {
+    ) -> Result<(u64, Quota), NotRegistered> {
         let mut inner = self.lock();
         if inner.stopping {
-            return Err(Refused::Stopping);
+            return Err(NotRegistered::Stopping);
         }
         let from_peer = inner.by_peer.get(&peer).copied().unwrap_or(0);
         let over = if inner.regular >= caps.total {
@@ -107,21 +108,21 @@ impl Registry {
         } else {
             None
         };
-        let place = match over {
+        let quota = match over {
             None => {
                 inner.regular += 1;
                 *inner.by_peer.entry(peer).or_default() += 1;
-                Place::Regular
+                Quota::Regular
             }
             Some(over) if inner.reserved < caps.reserve => {
                 inner.reserved += 1;
-                Place::Reserve(over)
+                Quota::Reserve(over)
             }
-            Some(over) => return Err(Refused::Full(over)),
+            Some(over) => return Err(NotRegistered::Full(over)),
         };
         let id = inner.next_id;
         inner.next_id += 1;
-        let peer = (place == Place::Regular).then_some(peer);
+        let peer = (quota == Quota::Regular).then_some(peer);
         inner.open.insert(
             id,
             Entry {
@@ -130,12 +131,12 @@ impl Registry {
                 peer,
             },
         );
-        Ok((id, place))
+        Ok((id, quota))
     }
 
-    /// Takes charge of a registered connection: it leaves when the slot is dropped.
-    pub fn slot(&self, id: u64) -> Slot<'_> {
-        Slot { registry: self, id }
+    /// Takes charge of a registered connection: it leaves when the registration is dropped.
+    pub fn registration(&self, id: u64) -> Registration<'_> {
+        Registration { registry: self, id }
     }
 
     #[cfg(test)]
@@ -171,7 +172,7 @@ impl Registry {
     }
 }
 
-impl Slot<'_> {
+impl Registration<'_> {
     /// Marks the connection as waiting for its next request. `false` when
     /// the server is stopping: the connection should close instead.
     pub fn await_request(&self) -> bool {
@@ -214,7 +215,7 @@ impl Inner {
     }
 }
 
-impl Drop for Slot<'_> {
+impl Drop for Registration<'_> {
     fn drop(&mut self) {
         self.registry.lock().close(self.id);
         self.registry.left.notify_all();
@@ -246,19 +247,19 @@ mod tests {
     }
 
     #[test]
-    fn the_cap_counts_open_connections_and_a_dropped_slot_frees_its_place() {
+    fn the_cap_counts_open_connections_and_a_dropped_registration_frees_its_place() {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let registry = Registry::default();
         let (a, _ca) = pair(&listener);
         let (b, _cb) = pair(&listener);
-        let (first, place) = registry.open(a, HOME, caps(1, 1, 0)).unwrap();
-        assert_eq!(place, Place::Regular);
+        let (first, quota) = registry.open(a, HOME, caps(1, 1, 0)).unwrap();
+        assert_eq!(quota, Quota::Regular);
         assert_eq!(
             registry.open(Arc::clone(&b), AWAY, caps(1, 1, 0)),
-            Err(Refused::Full(Over::Total))
+            Err(NotRegistered::Full(Over::Total))
         );
         assert_eq!(registry.len(), 1);
-        drop(registry.slot(first));
+        drop(registry.registration(first));
         assert_eq!(registry.len(), 0);
         assert!(registry.open(b, HOME, caps(1, 1, 0)).is_ok());
     }
@@ -272,16 +273,16 @@ mod tests {
         let open = |i: usize, peer| registry.open(Arc::clone(&streams[i].0), peer, caps);
         let (a, _) = open(0, HOME).unwrap();
         open(1, HOME).unwrap();
-        let (reserved, place) = open(2, HOME).unwrap();
-        assert_eq!(place, Place::Reserve(Over::PerPeer));
+        let (reserved, quota) = open(2, HOME).unwrap();
+        assert_eq!(quota, Quota::Reserve(Over::PerPeer));
         // The reserve is full; this peer is turned away, another is not.
-        assert_eq!(open(3, HOME), Err(Refused::Full(Over::PerPeer)));
-        assert_eq!(open(3, AWAY).unwrap().1, Place::Regular);
+        assert_eq!(open(3, HOME), Err(NotRegistered::Full(Over::PerPeer)));
+        assert_eq!(open(3, AWAY).unwrap().1, Quota::Regular);
         assert_eq!((registry.held_by(HOME), registry.held_by(AWAY)), (2, 1));
-        drop(registry.slot(reserved));
-        drop(registry.slot(a));
+        drop(registry.registration(reserved));
+        drop(registry.registration(a));
         assert_eq!(registry.held_by(HOME), 1);
-        assert_eq!(open(4, HOME).unwrap().1, Place::Regular);
+        assert_eq!(open(4, HOME).unwrap().1, Quota::Regular);
     }
 
     #[test]
@@ -299,18 +300,18 @@ mod tests {
             s.spawn(|| {
                 // Registered as waiting for a request: blocks until the stop
                 // shuts the reading side down.
-                let _slot = registry.slot(waiting_id);
+                let _registration = registry.registration(waiting_id);
                 let mut byte = [0u8; 1];
                 assert_eq!((&*waiting).read(&mut byte).unwrap(), 0);
             });
             s.spawn(|| {
-                let slot = registry.slot(busy_id);
-                slot.request_received();
+                let registration = registry.registration(busy_id);
+                registration.request_received();
                 while !registry.lock().stopping {
                     std::thread::yield_now();
                 }
                 // Its request finishes; then it learns it must close.
-                assert!(!slot.await_request());
+                assert!(!registration.await_request());
             });
             registry.stop();
             assert_eq!(registry.len(), 0);
@@ -318,7 +319,7 @@ mod tests {
         let (late, _client_l) = pair(&listener);
         assert_eq!(
             registry.open(late, HOME, caps(8, 8, 0)),
-            Err(Refused::Stopping)
+            Err(NotRegistered::Stopping)
         );
     }
 }

@@ -1,6 +1,6 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
-use super::admission::{BodyCharge, Refused};
+use super::admission::{BodyCharge, NotAdmitted};
 use super::error::{ApiError, ApiErrorKind};
 use super::http::{Connection, RequestHead, Response};
 use super::memory_budget::{resident_bytes, Charge};
@@ -63,6 +63,84 @@ impl RenderQuery {
         }
         Ok(parsed)
     }
+}
+
+impl RenderQuery {
+    /// What the renderer is asked for: the query's samples and depth, the
+    /// rest as the library's defaults.
+    fn options(&self) -> RenderOptions {
+        RenderOptions {
+            spp: self.spp,
+            depth: self.depth,
+            ..RenderOptions::default()
+        }
+    }
+}
+
+/// A render request's answer: the encoded image and the figures the
+/// service sends as headers.
+#[derive(Debug)]
+pub struct EncodedRender {
+    pub bytes: Vec<u8>,
+    pub format: Format,
+    pub width: u32,
+    pub height: u32,
+    pub rays: u64,
+}
+
+/// One `POST /render` without HTTP, admission, memory charges or a
+/// deadline: the query string and the scene text in, the encoded image out,
+/// through the very steps the `POST /render` handler takes (`RenderQuery::parse`,
+/// `parse_scene`, `check_limits`, the render on `pool`, `encode`), so
+/// whatever the service refuses is refused here with the same error.
+/// `voxtrace load --in-process` measures the service against it.
+pub fn render_request(
+    query: &str,
+    body: &[u8],
+    config: &ServiceConfig,
+    pool: &rayon::ThreadPool,
+) -> Result<EncodedRender, ApiError> {
+    let query = RenderQuery::parse(query)?;
+    let scene = parse_scene(pool, body)?;
+    check_limits(&scene, &query, config)?;
+    let options = query.options();
+    let rendered = pool
+        .install(|| render_scene(&scene, &options, &|_| {}))
+        .map_err(render_failed)?;
+    encode(&rendered, query.format)
+}
+
+/// The scene of a request body, parsed on the render pool: the parser is
+/// parallel, and on the pool it never starts rayon's global pool beside the
+/// service's own (which would put more busy threads than `--threads` on
+/// the cores).
+fn parse_scene(pool: &rayon::ThreadPool, body: &[u8]) -> Result<Scene, ApiError> {
+    pool.install(|| scene::parse(body))
+        .map_err(|e| ApiError::scene(&e))
+}
+
+/// The answer to a render that returned an error of its own: an option it
+/// refuses is the query's fault (400).
+fn render_failed(error: RenderError) -> ApiError {
+    match error {
+        RenderError::BadOption(why) => bad_query(why),
+        other => ApiErrorKind::Encode(other.to_string()).into(),
+    }
+}
+
+/// The image in the asked-for format, with its figures.
+fn encode(rendered: &Rendered, format: Format) -> Result<EncodedRender, ApiError> {
+    let bytes = rendered
+        .image
+        .encode(format)
+        .map_err(|e| ApiErrorKind::Encode(e.to_string()))?;
+    Ok(EncodedRender {
+        bytes,
+        format,
+        width: rendered.image.width,
+        height: rendered.image.height,
+        rays: rendered.stats.rays.total(),
+    })
 }
 
 fn number(key: &str, value: &str, low: u32, high: u32) -> Result<u32, ApiError> {
@@ -162,12 +240,12 @@ pub fn handle(
     let deadline = queued + config.render_timeout;
     let ticket = match place.enter(deadline, QUEUE_POLL, || conn.client_gone(may_probe)) {
         Ok(ticket) => ticket,
-        Err(Refused::Abandoned) => {
+        Err(NotAdmitted::Abandoned) => {
             state.metrics.render_abandoned();
             return Ok(None);
         }
-        Err(Refused::QueueFull) => return Err(ApiErrorKind::QueueFull.into()),
-        Err(Refused::WaitedTooLong) => {
+        Err(NotAdmitted::QueueFull) => return Err(ApiErrorKind::QueueFull.into()),
+        Err(NotAdmitted::WaitedTooLong) => {
             return Err(ApiErrorKind::QueueTimeout {
                 waited_ms: queued.elapsed().as_millis(),
             }
@@ -180,24 +258,14 @@ pub fn handle(
     // is held (the waiting requests hold only their bodies, within their
     // budget), and a waiting request is never stuck in a parse queued on
     // the busy render pool, where its client's leaving would go unseen.
-    // The parser is parallel: it runs on the render pool too, so the
-    // service never starts rayon's global pool beside its own (which would
-    // put twice as many busy threads as `--threads` on the cores).
-    let scene = state
-        .pool
-        .install(|| scene::parse(&body))
-        .map_err(|e| ApiError::scene(&e))?;
+    let scene = parse_scene(&state.pool, &body)?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
     let held = charge_render(state, &scene, query.format)?;
     if budget.spent() {
         return Err(budget.stopped(state));
     }
-    let options = RenderOptions {
-        spp: query.spp,
-        depth: query.depth,
-        ..RenderOptions::default()
-    };
+    let options = query.options();
     let name = download_name(&scene, query.format);
     let started = Instant::now();
     let watched = watched_render(state, conn, may_probe, scene, options, held, &budget);
@@ -212,22 +280,27 @@ pub fn handle(
             return Ok(None);
         }
         Watched::OutOfTime => return Err(budget.stopped(state)),
-        Watched::Failed(RenderError::BadOption(why)) => return Err(bad_query(why)),
-        Watched::Failed(other) => return Err(ApiErrorKind::Encode(other.to_string()).into()),
+        Watched::Failed(error) => return Err(render_failed(error)),
     };
     let elapsed = started.elapsed();
-    let rays = rendered.stats.rays.total();
-    state.metrics.render(elapsed, rays);
-
-    let image = rendered
-        .image
-        .encode(query.format)
-        .map_err(|e| ApiErrorKind::Encode(e.to_string()))?;
-    let (width, height) = (rendered.image.width, rendered.image.height);
+    state.metrics.render(elapsed, rendered.stats.rays.total());
+    let encoded = encode(&rendered, query.format)?;
     drop(rendered);
     // Only the encoded image is held from here until it is written.
-    held.shrink_to(image.len() as u64);
-    let mut response = Response::new(200, query.format.mime_type(), image)
+    held.shrink_to(encoded.bytes.len() as u64);
+    Ok(Some(image_response(encoded, &name, elapsed, held)))
+}
+
+/// The 200 answer: the image, its download name, and its figures as headers.
+fn image_response(encoded: EncodedRender, name: &str, elapsed: Duration, held: Charge) -> Response {
+    let EncodedRender {
+        bytes,
+        format,
+        width,
+        height,
+        rays,
+    } = encoded;
+    let mut response = Response::new(200, format.mime_type(), bytes)
         .with_header(
             "Content-Disposition",
             format!("inline; filename=\"{name}\""),
@@ -239,7 +312,7 @@ pub fn handle(
         .with_header("X-Image-Height", height.to_string())
         .with_header("Access-Control-Expose-Headers", FIGURE_HEADERS);
     response.hold = Some(held);
-    Ok(Some(response))
+    response
 }
 
 /// A render's time budget: from when it takes its slot, through parsing,
@@ -357,7 +430,7 @@ fn watched_render(
 /// Charges what the render will hold to the memory budget before it
 /// starts: the parsed scene with its f32 copy and index, the framebuffer,
 /// and the largest encoding of the image, which is held until written.
-/// Refused (with the part that does not fit) if the budget or the measured
+/// NotAdmitted (with the part that does not fit) if the budget or the measured
 /// resident set has no room.
 fn charge_render(state: &State, scene: &Scene, format: Format) -> Result<Charge, ApiError> {
     let scene_bytes = scene_bytes(scene);

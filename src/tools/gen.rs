@@ -8,6 +8,7 @@
 //! ray crosses about [`COVERAGE`] spheres on average: most rays hit something
 //! whatever the sphere count.
 
+pub use crate::rng::Rng;
 use crate::scene::{write_light, write_sphere, Light, Material, Sphere};
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -37,7 +38,7 @@ const FLOOR_RADIUS: f64 = 1000.0;
 const FLOOR_DROP: f64 = 3.0;
 
 /// How sphere sizes and positions are drawn.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Distribution {
     /// Uniform in the frustum, radii within ±20 % of one size.
     Uniform,
@@ -56,14 +57,9 @@ pub enum Distribution {
 }
 
 impl Distribution {
+    /// Its name (see [`crate::names`]).
     pub fn name(self) -> &'static str {
-        match self {
-            Distribution::Uniform => "uniform",
-            Distribution::Mixed => "mixed",
-            Distribution::Clustered => "clustered",
-            Distribution::Clumps => "clumps",
-            Distribution::Straddle => "straddle",
-        }
+        crate::names::Named::name(self)
     }
 }
 
@@ -91,32 +87,6 @@ pub fn lights() -> [Light; 3] {
         light(35.0, 25.0, -10.0, 0.4),
         light(0.0, -20.0, -60.0, 0.3),
     ]
-}
-
-/// SplitMix64: small, fast, and the same on every platform.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        Rng(seed)
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
 }
 
 /// The frustum's volume between the two depths.

@@ -8,12 +8,14 @@
 //! loop against a slow server sends less and so hides the queueing a real
 //! user would see ("coordinated omission"); the open loop's schedule does not.
 //!
-//! `in_process` replaces the HTTP exchange with the same work done in this
-//! process (parse, render, encode PNG), the baseline the service is measured
-//! against.
+//! `in_process` replaces the HTTP exchange with the service's own render
+//! path in this process ([`render_request`]: the query, parsing, the
+//! service's limits, the render, the encoding), the baseline the service is
+//! measured against; each request counts with the status the service would
+//! have answered.
 
-use crate::output::Format;
-use crate::render::{render_scene, RenderOptions};
+use crate::service::{render_request, ServiceConfig};
+use crate::threads::Threads;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::io::{self, BufRead, BufReader, IsTerminal, Read, Write};
@@ -60,19 +62,18 @@ impl Url {
         Ok(Url { authority, target })
     }
 
-    /// A query parameter's value.
-    fn query_value(&self, key: &str) -> Option<&str> {
-        let (_, query) = self.target.split_once('?')?;
-        query
-            .split('&')
-            .find_map(|pair| pair.strip_prefix(key)?.strip_prefix('='))
+    /// What follows `?` in the target, without it; empty if none.
+    fn query(&self) -> &str {
+        self.target.split_once('?').map_or("", |(_, query)| query)
     }
 }
 
-/// When to stop.
+/// How long a run lasts.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Stop {
-    After(Duration),
+pub enum Until {
+    /// Until this much time has passed since the start.
+    Elapsed(Duration),
+    /// Until this many requests have been sent.
     Requests(u64),
 }
 
@@ -82,7 +83,7 @@ pub struct LoadConfig {
     /// The scene to POST; without one, requests are GETs.
     pub body: Option<Vec<u8>>,
     pub concurrency: usize,
-    pub stop: Stop,
+    pub until: Until,
     /// Requests per second on a fixed schedule (open loop); `None`: closed loop.
     pub rate: Option<f64>,
     /// Longest wait for one response.
@@ -106,7 +107,7 @@ pub enum TransportError {
     Timeout,
     /// The server closed the connection before the whole response.
     Closed,
-    /// Not an HTTP/1.x response, or an in-process render failed.
+    /// Not an HTTP/1.x response.
     Protocol,
     Io,
     /// Closed before the first byte of the response; only ever reported as
@@ -151,7 +152,7 @@ struct Sample {
 
 /// What a run measured.
 #[derive(Debug)]
-pub struct Report {
+pub struct LoadReport {
     /// The measuring window: the whole `--duration`, or the time to finish
     /// `--requests`.
     pub elapsed: Duration,
@@ -224,7 +225,7 @@ impl fmt::Display for Latency {
     }
 }
 
-impl Report {
+impl LoadReport {
     fn per_second(&self, n: u64) -> f64 {
         n as f64 / self.elapsed.as_secs_f64().max(1e-9)
     }
@@ -286,7 +287,7 @@ impl Report {
     }
 }
 
-impl fmt::Display for Report {
+impl fmt::Display for LoadReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let secs = self.elapsed.as_secs_f64();
         writeln!(
@@ -366,6 +367,8 @@ struct Run<'a> {
     /// (the whole render runs on pool threads, which is measurably faster
     /// than driving the pool from outside).
     pool: Option<rayon::ThreadPool>,
+    /// In process: the limits of a `voxtrace serve` with its defaults.
+    service: ServiceConfig,
     started: Instant,
     /// The next request number to take.
     next: AtomicU64,
@@ -380,16 +383,16 @@ impl Run<'_> {
             Some(rate) => self.started + Duration::from_secs_f64(i as f64 / rate),
             None => Instant::now(),
         };
-        match self.config.stop {
-            Stop::Requests(n) if i >= n => None,
-            Stop::After(d) if due >= self.started + d => None,
+        match self.config.until {
+            Until::Requests(n) if i >= n => None,
+            Until::Elapsed(d) if due >= self.started + d => None,
             _ => Some(due),
         }
     }
 }
 
 /// Runs the load and reports what it measured.
-pub fn run(config: &LoadConfig) -> Result<Report, String> {
+pub fn run(config: &LoadConfig) -> Result<LoadReport, String> {
     if config.concurrency == 0 {
         return Err("--concurrency must be at least 1".into());
     }
@@ -398,10 +401,11 @@ pub fn run(config: &LoadConfig) -> Result<Report, String> {
     }
     let mut pool = None;
     let addr = if config.in_process {
-        let body = config.body.as_deref().ok_or("--in-process needs --scene")?;
-        crate::scene::parse(body).map_err(|e| format!("the scene: {e}"))?;
-        let threads = rayon::ThreadPoolBuilder::new().build();
-        pool = Some(threads.map_err(|e| format!("cannot start the render threads: {e}"))?);
+        if config.body.is_none() {
+            return Err("--in-process needs --scene".into());
+        }
+        // One per core, as `voxtrace serve` by default.
+        pool = Some(crate::threads::pool(Threads::AllCores).map_err(|e| e.to_string())?);
         None
     } else {
         let addr = config
@@ -418,6 +422,7 @@ pub fn run(config: &LoadConfig) -> Result<Report, String> {
         addr,
         request: request_bytes(config),
         pool,
+        service: ServiceConfig::default(),
         started: Instant::now(),
         next: AtomicU64::new(0),
         live: Live::default(),
@@ -436,9 +441,9 @@ pub fn run(config: &LoadConfig) -> Result<Report, String> {
         run.live.finished.store(true, Ordering::Relaxed);
         samples
     });
-    let window = match config.stop {
-        Stop::After(window) => window,
-        Stop::Requests(_) => run.started.elapsed(),
+    let window = match config.until {
+        Until::Elapsed(window) => window,
+        Until::Requests(_) => run.started.elapsed(),
     };
     let mut report = summarize(samples.into_iter().flatten().collect(), window);
     report.unfinished = run.live.unfinished.load(Ordering::Relaxed);
@@ -478,7 +483,7 @@ fn worker(run: &Run) -> Vec<Sample> {
             Some(pool) => render_in_process(run, pool, due),
             None => exchange(run, &mut conn, &mut scratch, due),
         };
-        if let Stop::After(window) = run.config.stop {
+        if let Until::Elapsed(window) = run.config.until {
             if run.started.elapsed() > window {
                 run.live.unfinished.fetch_add(1, Ordering::Relaxed);
                 continue;
@@ -639,58 +644,27 @@ fn read_response(
     })
 }
 
-/// The service's work without HTTP: parse, render on the pool, encode.
+/// The service's work without HTTP, through the service's own
+/// [`render_request`]: answered with the status the service would give.
 fn render_in_process(run: &Run, pool: &rayon::ThreadPool, due: Instant) -> Sample {
     let body = run.config.body.as_deref().unwrap_or_default();
-    let options = RenderOptions {
-        spp: run
-            .config
-            .url
-            .query_value("spp")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(1),
-        depth: run
-            .config
-            .url
-            .query_value("depth")
-            .and_then(|v| v.parse().ok()),
-        ..RenderOptions::default()
+    let query = run.config.url.query();
+    let (status, bytes, rays) = match render_request(query, body, &run.service, pool) {
+        Ok(encoded) => (200, encoded.bytes.len() as u64, encoded.rays),
+        Err(error) => (error.kind.status(), 0, 0),
     };
-    // Parsed on the pool too, as the service does.
-    let result = pool
-        .install(|| crate::scene::parse(body))
-        .ok()
-        .and_then(|scene| {
-            pool.install(|| render_scene(&scene, &options, &|_| {}))
-                .ok()
-        })
-        .and_then(|rendered| {
-            Some((
-                rendered.image.encode(Format::Png).ok()?,
-                rendered.stats.rays.total(),
-            ))
-        });
-    match result {
-        Some((png, rays)) => Sample {
-            outcome: Outcome::Status(200),
-            latency: due.elapsed(),
-            bytes: png.len() as u64,
-            rays,
-            missing_retry_after: false,
-        },
-        None => Sample {
-            outcome: Outcome::Error(TransportError::Protocol),
-            latency: due.elapsed(),
-            bytes: 0,
-            rays: 0,
-            missing_retry_after: false,
-        },
+    Sample {
+        outcome: Outcome::Status(status),
+        latency: due.elapsed(),
+        bytes,
+        rays,
+        missing_retry_after: false,
     }
 }
 
-fn summarize(mut samples: Vec<Sample>, elapsed: Duration) -> Report {
+fn summarize(mut samples: Vec<Sample>, elapsed: Duration) -> LoadReport {
     samples.sort_by_key(|s| s.latency);
-    let mut report = Report {
+    let mut report = LoadReport {
         elapsed,
         unfinished: 0,
         missing_retry_after: samples.iter().filter(|s| s.missing_retry_after).count() as u64,
@@ -779,13 +753,13 @@ mod tests {
             (u.authority.as_str(), u.target.as_str()),
             ("127.0.0.1:8080", "/render?spp=2")
         );
-        assert_eq!(u.query_value("spp"), Some("2"));
-        assert_eq!(u.query_value("sp"), None);
+        assert_eq!(u.query(), "spp=2");
         let u = Url::parse("http://localhost").unwrap();
         assert_eq!(
             (u.authority.as_str(), u.target.as_str()),
             ("localhost:80", "/")
         );
+        assert_eq!(u.query(), "");
         assert_eq!(
             Url::parse("http://[::1]:9000/healthz").unwrap().authority,
             "[::1]:9000"

@@ -56,7 +56,7 @@ pub fn write(report: &Report) -> String {
             .iter()
             .filter(|m| m.family == family && m.variant == 0)
             .count();
-        let _ = writeln!(md, "### {family} ({n} scenes)\n");
+        let _ = writeln!(md, "### {} ({n} scenes)\n", family.title());
         let _ = writeln!(md, "| part | variant | time (ms) | Mrays/s | RMSE | PSNR (dB) | max diff | > 1 level | hit mismatch | Pareto |");
         let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---:|:-:|");
         for s in report.summarize(family) {

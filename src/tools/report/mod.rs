@@ -16,6 +16,7 @@ pub mod suite;
 pub use metrics::{mismatch_rate, ImageError};
 pub use suite::{Family, SuiteScene};
 
+use crate::names::Named;
 use crate::render::{
     eye_hit_map, eye_hit_map_from, render_in, IndexKind, RayCounts, RenderOptions,
 };
@@ -25,30 +26,22 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-#[derive(clap::Args)]
-pub struct ReportArgs {
+/// What to render and where the report goes.
+#[derive(Clone, Debug)]
+pub struct ReportConfig {
     /// Where report.md and the plot go.
-    #[arg(long, default_value = "docs/report")]
-    out: PathBuf,
+    pub out: PathBuf,
     /// The course's reference scenes (with classic/ and tinygraphics/).
-    #[arg(long, default_value = "tests/fixtures/reference")]
-    reference: PathBuf,
+    pub reference: PathBuf,
     /// The hard-case scenes.
-    #[arg(long, default_value = "scenes/hard")]
-    hard: PathBuf,
+    pub hard: PathBuf,
     /// Timed repetitions of each variant (the median is reported).
-    #[arg(long, default_value_t = 3)]
-    reps: u32,
-    /// Longest image side for the antialiasing part (its reference traces 256
-    /// samples per pixel, so it runs at reduced resolution).
-    #[arg(long, default_value_t = 96)]
-    aa_size: u32,
-    /// Render threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Which scene families to render (default: all).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = Family::ALL)]
-    families: Vec<Family>,
+    pub reps: u32,
+    /// Longest image side for the antialiasing part (its reference traces
+    /// [`REFERENCE_SPP`] samples per pixel, so it runs at reduced resolution).
+    pub aa_size: u32,
+    /// Which scene families to render.
+    pub families: Vec<Family>,
 }
 
 #[derive(Debug)]
@@ -63,7 +56,6 @@ pub enum ReportError {
         error: std::io::Error,
     },
     Plot(String),
-    Threads(String),
     /// The report was written, but an index disagreed with brute force.
     IndexNotExact(Vec<String>),
 }
@@ -77,7 +69,6 @@ impl fmt::Display for ReportError {
                 write!(f, "cannot write {}: {error}", path.display())
             }
             ReportError::Plot(why) => write!(f, "cannot draw the plot: {why}"),
-            ReportError::Threads(why) => write!(f, "cannot start the render threads: {why}"),
             ReportError::IndexNotExact(rows) => {
                 write!(f, "an index differs from brute force: {}", rows.join("; "))
             }
@@ -218,13 +209,12 @@ pub fn variants() -> Vec<Variant> {
             Against::Reference,
         )
     });
-    for &index in <IndexKind as clap::ValueEnum>::value_variants() {
-        let name = index_name(index);
+    for &index in IndexKind::ALL {
         v.push(Variant {
             index,
             ..Variant::new(
                 Section::Index,
-                format!("f32 index {name}"),
+                format!("f32 index {index}"),
                 F32,
                 Against::BruteForce,
             )
@@ -233,7 +223,7 @@ pub fn variants() -> Vec<Variant> {
             index,
             ..Variant::new(
                 Section::Index,
-                format!("f64 index {name}"),
+                format!("f64 index {index}"),
                 F64,
                 Against::BruteForce,
             )
@@ -260,12 +250,6 @@ pub fn variants() -> Vec<Variant> {
         });
     }
     v
-}
-
-pub fn index_name(index: IndexKind) -> String {
-    clap::ValueEnum::to_possible_value(&index)
-        .map(|v| v.get_name().to_owned())
-        .unwrap_or_else(|| format!("{index:?}"))
 }
 
 /// One variant of one scene, measured.
@@ -297,7 +281,8 @@ fn reduced(scene: &Scene, size: u32) -> Scene {
     s
 }
 
-struct Rendered {
+/// The timed repetitions of one variant, and the image they all rendered.
+struct Runs {
     image: crate::output::Image,
     rays: RayCounts,
     seconds: Vec<f64>,
@@ -338,7 +323,7 @@ fn measure_scene(
             &entry.scene
         }
     };
-    let mut runs: Vec<Option<Rendered>> = variants.iter().map(|_| None).collect();
+    let mut runs: Vec<Option<Runs>> = variants.iter().map(|_| None).collect();
     for rep in 0..reps.max(1) {
         for (v, run) in variants.iter().zip(&mut runs) {
             // The 256-sample reference costs more than everything else
@@ -349,7 +334,7 @@ fn measure_scene(
             let started = Instant::now();
             let r = render_once(scene_for(v), &entry.name, v)?;
             let wall = started.elapsed().as_secs_f64();
-            let run = run.get_or_insert_with(|| Rendered {
+            let run = run.get_or_insert_with(|| Runs {
                 image: r.image.clone(),
                 rays: r.stats.rays,
                 seconds: vec![],
@@ -360,7 +345,7 @@ fn measure_scene(
             run.render_seconds.push(r.stats.render_time.as_secs_f64());
         }
     }
-    let runs: Vec<Rendered> = runs
+    let runs: Vec<Runs> = runs
         .into_iter()
         .map(|r| r.expect("at least one repetition"))
         .collect();
@@ -477,38 +462,40 @@ pub struct Report {
     pub seconds: f64,
 }
 
-pub fn run(args: ReportArgs) -> Result<(), ReportError> {
+/// Renders the suite `config` names and writes the report, on the current
+/// rayon pool (scenes are parsed there too).
+pub fn run(config: &ReportConfig) -> Result<(), ReportError> {
     let started = Instant::now();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.unwrap_or(0))
-        .build()
-        .map_err(|e| ReportError::Threads(e.to_string()))?;
-    let suite =
-        suite::load(&args.reference, &args.hard, &args.families).map_err(ReportError::Suite)?;
+    let suite = suite::load(&config.reference, &config.hard, &config.families)
+        .map_err(ReportError::Suite)?;
     let variants = variants();
     let mut measurements = vec![];
     for (i, entry) in suite.iter().enumerate() {
         eprintln!("[{}/{}] {}", i + 1, suite.len(), entry.name);
-        measurements
-            .extend(pool.install(|| measure_scene(entry, &variants, args.reps, args.aa_size))?);
+        measurements.extend(measure_scene(
+            entry,
+            &variants,
+            config.reps,
+            config.aa_size,
+        )?);
     }
-    let invariance = pool.install(|| invariance(&args.hard))?;
+    let invariance = invariance(&config.hard)?;
     let report = Report {
         variants,
         measurements,
         invariance,
-        threads: pool.current_num_threads(),
-        reps: args.reps,
-        aa_size: args.aa_size,
+        threads: rayon::current_num_threads(),
+        reps: config.reps,
+        aa_size: config.aa_size,
         seconds: started.elapsed().as_secs_f64(),
     };
-    std::fs::create_dir_all(&args.out).map_err(|error| ReportError::Write {
-        path: args.out.clone(),
+    std::fs::create_dir_all(&config.out).map_err(|error| ReportError::Write {
+        path: config.out.clone(),
         error,
     })?;
-    let plot_path = args.out.join(plot::FILE_NAME);
+    let plot_path = config.out.join(plot::FILE_NAME);
     plot::draw(&report, &plot_path)?;
-    let md_path = args.out.join("report.md");
+    let md_path = config.out.join("report.md");
     std::fs::write(&md_path, markdown::write(&report)).map_err(|error| ReportError::Write {
         path: md_path.clone(),
         error,
@@ -555,7 +542,8 @@ impl Report {
     /// The families that were rendered, in their fixed order.
     pub fn families(&self) -> Vec<Family> {
         Family::ALL
-            .into_iter()
+            .iter()
+            .copied()
             .filter(|f| self.measurements.iter().any(|m| m.family == *f))
             .collect()
     }
@@ -624,7 +612,7 @@ mod tests {
                 .count(),
             1
         );
-        for &index in <IndexKind as clap::ValueEnum>::value_variants() {
+        for &index in IndexKind::ALL {
             assert_eq!(
                 v.iter()
                     .filter(|v| v.section == Section::Index && v.index == index)

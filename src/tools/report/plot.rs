@@ -37,7 +37,7 @@ pub fn draw(report: &Report, path: &Path) -> Result<(), ReportError> {
                     (s.seconds * 1e3, s.mean_rmse.max(ZERO_AT), label, s.pareto)
                 })
                 .collect();
-            panel(area, &format!("{family}: {what}"), &points)?;
+            panel(area, &format!("{}: {what}", family.title()), &points)?;
         }
     }
     root.present().map_err(err)

@@ -7,7 +7,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// Scenes are grouped by where they come from; each family gets its own plot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Family {
     /// The course's scenes, both dialects (`tests/fixtures/reference`).
     Reference,
@@ -18,16 +18,14 @@ pub enum Family {
 }
 
 impl Family {
-    pub const ALL: [Family; 3] = [Family::Reference, Family::Hard, Family::Generated];
-}
-
-impl fmt::Display for Family {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
+    /// How the report's headings and plots call it (its name is in
+    /// [`crate::names`]).
+    pub fn title(self) -> &'static str {
+        match self {
             Family::Reference => "reference",
             Family::Hard => "hard cases",
             Family::Generated => "generated",
-        })
+        }
     }
 }
 
