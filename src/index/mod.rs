@@ -6,9 +6,11 @@
 
 mod brute;
 pub mod grid;
+mod order;
 
 pub use brute::BruteForce;
 pub use grid::{EmptySpace, VoxelHashGrid, PACKET_RAYS};
+pub use order::compact_order;
 
 use crate::geometry::{Ray, Real, V3};
 
@@ -51,8 +53,8 @@ pub trait SphereIndex<R: Real>: Sync {
     /// [`Self::any_hit`] of the shadow rays toward the point `light`, into
     /// `out` (as long as `origins`): ray i is `o + t·(light − o)` with
     /// `o = origins[i]`, blocked by a hit with t in (0, 1). Rays from
-    /// neighbouring points should be adjacent: an index may trace them
-    /// together.
+    /// neighbouring points should be adjacent ([`compact_order`] lists them
+    /// so): an index may trace them together.
     fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
         for (&o, blocked) in origins.iter().zip(out) {
             *blocked = self.any_hit(&Ray::new(o, light - o), R::one());

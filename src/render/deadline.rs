@@ -8,6 +8,8 @@
 //! rays' path: a timer thread raises the flag at the deadline, and whoever
 //! holds a [`CancelToken`] raises it when the render is no longer wanted.
 
+use crate::index::PACKET_RAYS;
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -171,6 +173,34 @@ impl Stop {
         if self.stoppable && time > SLOW_PACKET {
             self.single_rays.store(true, Ordering::Relaxed);
         }
+    }
+
+    /// Traces `n` rays in packets of [`PACKET_RAYS`] (`trace(range, true)`),
+    /// checking between packets; or, once a packet has been slow, one at a
+    /// time (`trace(i..i + 1, false)`), checking between rays. The rays
+    /// traced in packets, or None if told to stop.
+    pub fn in_packets(&self, n: usize, mut trace: impl FnMut(Range<usize>, bool)) -> Option<u64> {
+        let mut packed = 0;
+        for start in (0..n).step_by(PACKET_RAYS) {
+            let end = (start + PACKET_RAYS).min(n);
+            if self.now() {
+                return None;
+            }
+            if self.single_rays() {
+                for i in start..end {
+                    if self.now() {
+                        return None;
+                    }
+                    trace(i..i + 1, false);
+                }
+            } else {
+                let started = Instant::now();
+                trace(start..end, true);
+                self.packet_took(started.elapsed());
+                packed += (end - start) as u64;
+            }
+        }
+        Some(packed)
     }
 
     #[cfg(test)]

@@ -9,7 +9,7 @@ pub use camera::PixelSampler;
 pub use deadline::{CancelToken, Deadline};
 
 use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
-use crate::index::{BruteForce, SphereIndex, VoxelHashGrid, PACKET_RAYS};
+use crate::index::{BruteForce, SphereIndex, VoxelHashGrid};
 use crate::limits;
 use crate::output::Image;
 use crate::scene::{Dialect, Scene};
@@ -427,7 +427,6 @@ struct BlockRays<R: Real> {
     surfaces: Vec<Option<SurfacePoint<R>>>,
     /// Row i (one entry per light) says which of hit i's shadow rays are blocked.
     blocked: Vec<bool>,
-    lights: usize,
     samples: Vec<DVec3>,
 }
 
@@ -475,7 +474,6 @@ impl<R: Real> BlockRays<R> {
                 .zip(&self.hits)
                 .map(|(&dir, hit)| hit.map(|hit| tracer.eye_surface(dir, hit))),
         );
-        self.lights = tracer.light_count();
         let BandCounts { rays, in_packets } = counts;
         tracer.eye_shadows(
             &self.hits,
@@ -494,16 +492,16 @@ impl<R: Real> BlockRays<R> {
         counts: &mut RayCounts,
     ) -> DVec3 {
         let hit = self.hits[i].zip(self.surfaces[i]);
-        let shadows = &self.blocked[i * self.lights..(i + 1) * self.lights];
+        let lights = tracer.light_count();
+        let shadows = &self.blocked[i * lights..(i + 1) * lights];
         tracer.shade_eye(self.dirs[i], hit, shadows, counts)
     }
 }
 
-/// The nearest hits of the eye rays `dirs` into `hits`, a packet at a time
-/// (the packets the index would cut the list into itself), checking `stop`
-/// between packets; or one ray at a time, checking between rays, once a
-/// packet has been slow; `packed` counts the rays traced in packets.
-/// `false` if told to stop.
+/// The nearest hits of the eye rays `dirs` into `hits`, in packets (the
+/// ones the index would cut the list into itself) or, once a packet has
+/// been slow, one at a time ([`Stop::in_packets`]); `packed` counts the
+/// rays traced in packets. `false` if told to stop.
 fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
     dirs: &[V3<R>],
@@ -511,25 +509,14 @@ fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
     packed: &mut RayCounts,
     stop: &Stop,
 ) -> bool {
-    for (dirs, hits) in dirs.chunks(PACKET_RAYS).zip(hits.chunks_mut(PACKET_RAYS)) {
-        if stop.now() {
-            return false;
-        }
-        if stop.single_rays() {
-            for (&dir, hit) in dirs.iter().zip(hits) {
-                if stop.now() {
-                    return false;
-                }
-                *hit = tracer.eye_hit(dir);
-            }
+    let traced = stop.in_packets(dirs.len(), |rays, together| {
+        if together {
+            tracer.eye_hits(&dirs[rays.clone()], &mut hits[rays]);
         } else {
-            let started = Instant::now();
-            tracer.eye_hits(dirs, hits);
-            stop.packet_took(started.elapsed());
-            packed.eye += dirs.len() as u64;
+            hits[rays.start] = tracer.eye_hit(dirs[rays.start]);
         }
-    }
-    true
+    });
+    traced.map(|n| packed.eye += n).is_some()
 }
 
 /// Clamps to [0, 1] and quantises as the course did: `floor(255·c)`.

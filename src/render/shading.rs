@@ -6,11 +6,10 @@
 use super::deadline::Stop;
 use super::{RayCounts, RenderOptions, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
-use crate::index::{Hit, SphereIndex, PACKET_RAYS};
+use crate::index::{compact_order, Hit, SphereIndex};
 use crate::limits;
 use crate::scene::{Dialect, Material, Scene};
 use glam::DVec3;
-use std::time::Instant;
 
 /// Why a secondary ray is traced, for the statistics.
 #[derive(Clone, Copy)]
@@ -119,8 +118,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     /// Which shadow rays of the eye hits `hits` (at `surfaces`, None where
     /// a ray missed) are blocked, into `blocked`: row i (one entry per
     /// light) for hit i. The rays toward one light from all the hits are
-    /// traced together, in the order of `hits` (a tile's neighbouring
-    /// pixels). `counts` gets the rays traced and `packed` those of them
+    /// traced together, in [`compact_order`] of their origins. `counts` gets the rays traced and `packed` those of them
     /// traced in packets. False if told to stop.
     pub fn eye_shadows(
         &self,
@@ -147,6 +145,10 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                     origins.push(spawn_origin(surface, position - surface.point));
                 }
             }
+            // Neighbours together, so that the index's packets are coherent.
+            let order = compact_order::<R>(&origins);
+            which = order.iter().map(|&k| which[k]).collect();
+            origins = order.iter().map(|&k| origins[k]).collect();
             out.clear();
             out.resize(origins.len(), false);
             if !self.trace_shadow_rays(position, &origins, &mut out, counts, packed) {
@@ -160,9 +162,8 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     }
 
     /// Whether something lies between each of `origins` and `light`, into
-    /// `out`: a packet at a time, checking for a stop between packets; or,
-    /// once a packet has been slow, one ray at a time, checking between
-    /// rays. False if told to stop.
+    /// `out`, in packets or one ray at a time ([`Stop::in_packets`]). False
+    /// if told to stop.
     fn trace_shadow_rays(
         &self,
         light: V3<R>,
@@ -172,25 +173,16 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         packed: &mut RayCounts,
     ) -> bool {
         counts.shadow += origins.len() as u64;
-        for (origins, out) in origins.chunks(PACKET_RAYS).zip(out.chunks_mut(PACKET_RAYS)) {
-            if self.stop.now() {
-                return false;
-            }
-            if self.stop.single_rays() {
-                for (&o, blocked) in origins.iter().zip(out) {
-                    if self.stop.now() {
-                        return false;
-                    }
-                    *blocked = self.index.any_hit(&Ray::new(o, light - o), R::one());
-                }
+        let traced = self.stop.in_packets(origins.len(), |rays, together| {
+            if together {
+                self.index
+                    .any_hits_toward(light, &origins[rays.clone()], &mut out[rays]);
             } else {
-                let started = Instant::now();
-                self.index.any_hits_toward(light, origins, out);
-                self.stop.packet_took(started.elapsed());
-                packed.shadow += origins.len() as u64;
+                let o = origins[rays.start];
+                out[rays.start] = self.index.any_hit(&Ray::new(o, light - o), R::one());
             }
-        }
-        true
+        });
+        traced.map(|n| packed.shadow += n).is_some()
     }
 
     /// The colour seen along the eye ray with direction `dir`, whose nearest

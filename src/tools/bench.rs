@@ -11,7 +11,9 @@
 
 use super::gen::{generate, Distribution, GenOptions, Rng};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Vec3Ops, V3};
-use crate::index::{BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_RAYS};
+use crate::index::{
+    compact_order, BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_RAYS,
+};
 use crate::render::{self, PixelSampler};
 use crate::scene::{self, Scene, SceneError};
 use rayon::prelude::*;
@@ -266,12 +268,17 @@ fn shadow_rays(
                 .collect();
             lights
                 .iter()
-                .map(|&light| ShadowBatch {
-                    light,
-                    origins: surfaces
+                .map(|&light| {
+                    let origins: Vec<_> = surfaces
                         .iter()
                         .map(|s| spawn_origin(s, light - s.point))
-                        .collect(),
+                        .collect();
+                    // In the order the renderer hands them to the index.
+                    let order = compact_order::<f32>(&origins);
+                    ShadowBatch {
+                        light,
+                        origins: order.iter().map(|&k| origins[k]).collect(),
+                    }
                 })
                 .collect::<Vec<_>>()
         })

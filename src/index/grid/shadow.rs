@@ -1,9 +1,10 @@
 //! Shadow-ray packets: the rays from a tile's hit points toward one light,
 //! walked together from the light.
 //!
-//! Shadow rays toward one point light share their end, and from a tile of
-//! neighbouring hit points they leave it in nearly the same direction: seen
-//! from the light they are a packet like a tile's eye rays. Each is walked
+//! Shadow rays toward one point light share their end, and from a patch of
+//! neighbouring hit points (the caller lists them so, see
+//! [`crate::index::compact_order`]) they leave it in nearly the same
+//! direction: seen from the light they are a packet like a tile's eye rays. Each is walked
 //! backwards, from its end toward its origin, through the slab walk
 //! ([`super::slab`]); each candidate is tested with the ray as the renderer
 //! casts it (from the hit point, t in (0, 1)), lane by lane
@@ -66,11 +67,13 @@ impl<R: Real> ShadowLanes<R> {
         self.newly = 0;
     }
 
+    /// Tests the open lanes against one candidate; true if it blocks one.
     #[inline(always)]
-    fn test(&mut self, frame: &UnitSphereFrame<R>) {
+    fn test(&mut self, frame: &UnitSphereFrame<R>) -> bool {
         let hit = lanes::segments_hit(frame, &self.origin, &self.dir) & !self.blocked;
         self.blocked |= hit;
         self.newly |= hit;
+        hit != 0
     }
 }
 
@@ -136,35 +139,6 @@ fn aim_shadow_packet<R: Real>(
 /// the light, where eye rays from one tile never do.
 const WIDEST_CELLS_PER_RAY: f64 = 1.0;
 
-/// The order to trace `points` in: along a Morton curve over their bounding
-/// box, so that each run of [`LANES`] (a group of a packet) and of [`RAYS`]
-/// (a packet) is compact in space, and its rays toward the light a narrow
-/// fan.
-fn compact_order<R: Real>(points: &[V3<R>]) -> Vec<usize> {
-    let (lo, hi) = points
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
-        });
-    let scale = 1023.0 / (hi - lo).max_element().max(f64::MIN_POSITIVE);
-    let key = |p: &V3<R>| {
-        let q = ((p.to_dvec3() - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(1023.0));
-        morton(q.x as u32) | morton(q.y as u32) << 1 | morton(q.z as u32) << 2
-    };
-    let mut keyed: Vec<(u32, usize)> = points.iter().map(key).zip(0..).collect();
-    keyed.sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
-}
-
-/// The ten low bits of `x` spread to every third bit.
-fn morton(x: u32) -> u32 {
-    let mut x = x & 0x3ff;
-    x = (x | x << 16) & 0x0300_00ff;
-    x = (x | x << 8) & 0x0300_f00f;
-    x = (x | x << 4) & 0x030c_30c3;
-    (x | x << 2) & 0x0924_9249
-}
-
 /// The rays of `groups` still unblocked, one bit per ray.
 fn open_rays<R: Real>(groups: &ShadowGroups<R>) -> u64 {
     groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
@@ -173,32 +147,28 @@ fn open_rays<R: Real>(groups: &ShadowGroups<R>) -> u64 {
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`SphereIndex::any_hits_toward`]: packets of [`RAYS`] rays in
-    /// [`compact_order`], and rays one at a time where a packet cannot be
-    /// formed.
+    /// [`SphereIndex::any_hits_toward`]: packets of [`RAYS`] consecutive
+    /// rays, and rays one at a time where a packet cannot be formed.
     pub(super) fn packet_any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
         let mut groups: ShadowGroups<R> = std::array::from_fn(|_| ShadowLanes::new());
         let mut packet = Packet::new();
-        let order = compact_order::<R>(origins);
-        for order in order.chunks(RAYS) {
+        for (origins, out) in origins.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // A short last packet repeats its last ray in the spare lanes.
-            let sorted: [V3<R>; RAYS] =
-                std::array::from_fn(|i| origins[order[i.min(order.len() - 1)]]);
-            let dirs = sorted.map(|o| light - o);
-            if !aim_shadow_packet::<R>(&mut packet, light, &sorted, &dirs) {
-                for &at in order {
-                    let o = origins[at];
-                    out[at] = self.any_hit(&Ray::new(o, light - o), R::one());
+            let padded: [V3<R>; RAYS] = std::array::from_fn(|i| origins[i.min(origins.len() - 1)]);
+            let dirs = padded.map(|o| light - o);
+            if !aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs) {
+                for (&o, blocked) in origins.iter().zip(out.iter_mut()) {
+                    *blocked = self.any_hit(&Ray::new(o, light - o), R::one());
                 }
                 continue;
             }
             for (g, lanes) in groups.iter_mut().enumerate() {
                 let lanes_of = g * LANES..(g + 1) * LANES;
-                lanes.aim(&sorted[lanes_of.clone()], &dirs[lanes_of]);
+                lanes.aim(&padded[lanes_of.clone()], &dirs[lanes_of]);
             }
             self.trace_shadow_packet(&packet, &mut groups);
-            for (i, &at) in order.iter().enumerate() {
-                out[at] = groups[i / LANES].blocked >> (i % LANES) & 1 == 1;
+            for (i, blocked) in out.iter_mut().enumerate() {
+                *blocked = groups[i / LANES].blocked >> (i % LANES) & 1 == 1;
             }
         }
     }
@@ -251,8 +221,10 @@ impl<R: Real> VoxelHashGrid<R> {
             |ids, groups, live| {
                 let mut searching = groups_of(live);
                 for &i in ids {
-                    if mailbox.first_visit(i) {
-                        self.test_shadow_groups(i, cones, groups, searching);
+                    // Only a new blocker can close a group.
+                    if mailbox.first_visit(i)
+                        && self.test_shadow_groups(i, cones, groups, searching)
+                    {
                         searching &= open_groups(groups);
                     }
                 }
@@ -261,7 +233,7 @@ impl<R: Real> VoxelHashGrid<R> {
     }
 
     /// Tests candidate `i` against the groups among `searching` whose cones
-    /// it may meet.
+    /// it may meet; true if it blocks a ray.
     #[inline(always)]
     fn test_shadow_groups(
         &self,
@@ -269,13 +241,15 @@ impl<R: Real> VoxelHashGrid<R> {
         cones: &Cones,
         groups: &mut ShadowGroups<R>,
         searching: u32,
-    ) {
+    ) -> bool {
         let sphere = &self.spheres[i as usize];
         let center = sphere.frame.center.to_dvec3();
         let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        let mut blocks = false;
         for g in set_bits(u64::from(hit)) {
-            groups[g].test(&sphere.frame);
+            blocks |= groups[g].test(&sphere.frame);
         }
+        blocks
     }
 
     /// The open lanes of `lanes` through `level`, one ray at a time.
