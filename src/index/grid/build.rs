@@ -485,7 +485,11 @@ fn build_level(
         dims: dims.to_array(),
         slack,
         table: BlockTable::new(&blocks),
-        occupancy: Occupancy::new(dims.to_array(), regions.iter().map(|&(key, _)| key)),
+        occupancy: Occupancy::new(
+            dims.to_array(),
+            ids.len(),
+            regions.iter().map(|&(key, _)| key),
+        ),
         regions: RegionTable::new(&regions),
         cell_start,
         ids: candidates,

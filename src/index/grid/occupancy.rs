@@ -1,53 +1,76 @@
-//! The top of the grid's occupancy hierarchy: one bit per cube of regions.
+//! The top of the grid's occupancy hierarchy: how far empty space reaches
+//! around each cube of regions.
 //!
 //! Below it, a region's mask says which of its 4×4×4 blocks are occupied,
 //! and a block's mask which of its cells (see [`super::table`]). Those two
 //! are hash tables, and a probe for an absent key walks its run of slots to
 //! an empty one, in memory nothing else touches. Rays between clumps ask
-//! mostly for absent regions, so the level keeps a dense bitmap over its
-//! whole box, one bit per group of `2^shift` cells a side (a region, or a
-//! cube of regions where the box is large), small enough to stay in cache:
-//! a clear bit crosses the group with one test and no probe, the way the
-//! upper nodes of a VDB tree answer for the space below them (Museth 2013,
-//! "VDB: High-Resolution Sparse Volumes with Dynamic Topology").
+//! mostly for absent regions, so the level keeps a dense array over its
+//! whole box, one byte per group of `2^shift` cells a side (a region, or a
+//! cube of regions where the box is large), small enough to stay in cache,
+//! the way the upper nodes of a VDB tree answer for the space below them
+//! (Museth 2013, "VDB: High-Resolution Sparse Volumes with Dynamic
+//! Topology").
+//!
+//! The byte is a proximity cloud (Cohen & Sheffer 1994, "Proximity clouds —
+//! an acceleration technique for 3D grid traversal"): 0 for a group that may
+//! hold anything, else its chessboard distance (in groups) to the nearest
+//! such group, capped at 255. A group at distance `k` is the centre of a
+//! cube of `2k − 1` empty groups a side, which a ray crosses in one step: a
+//! ray through the wide gaps between clumps takes a few steps per level,
+//! not one per group it passes.
 
 use super::table::{unpack_key, BlockKey, BLOCK_SHIFT};
 
-/// Most bits the bitmap may have (256 KiB): the group side doubles until
-/// the box needs no more.
-const MAX_BITS: i64 = 1 << 21;
+/// Most groups the array may have (2 MiB): the group side doubles until the
+/// box needs no more.
+const MAX_GROUPS: i64 = 1 << 21;
+/// Groups the array may have per sphere of the level, beyond
+/// [`SMALL_SCENE_GROUPS`]: a few bytes per sphere.
+const GROUPS_PER_SPHERE: i64 = 8;
+/// Groups any level may have (256 KiB), so that a scene of a few spheres
+/// far apart does not allocate megabytes.
+const SMALL_SCENE_GROUPS: i64 = 1 << 18;
 
-/// One bit per group of cells of a level's box: set when any block in it is
-/// occupied.
+/// Per group of cells of a level's box: 0 when any block in it is occupied,
+/// else its distance to the nearest such group.
 pub struct Occupancy {
     /// Cells per group side, as a power of two (a region's side at least).
     pub shift: u32,
     /// Groups per axis.
     dims: [i64; 3],
-    bits: Vec<u64>,
+    distance: Vec<u8>,
 }
 
 impl Occupancy {
-    /// The bitmap of a level of `cell_dims` cells a side whose occupied
-    /// regions (groups of 4×4×4 blocks) have the keys `regions`.
-    pub fn new(cell_dims: [i64; 3], regions: impl Iterator<Item = BlockKey>) -> Self {
+    /// The array of a level of `spheres` spheres in `cell_dims` cells a
+    /// side whose occupied regions (groups of 4×4×4 blocks) have the keys
+    /// `regions`.
+    pub fn new(
+        cell_dims: [i64; 3],
+        spheres: usize,
+        regions: impl Iterator<Item = BlockKey>,
+    ) -> Self {
+        let budget = (spheres as i64)
+            .saturating_mul(GROUPS_PER_SPHERE)
+            .clamp(SMALL_SCENE_GROUPS, MAX_GROUPS);
         let mut shift = 2 * BLOCK_SHIFT;
         let groups = |shift: u32| cell_dims.map(|d| ((d - 1) >> shift) + 1);
-        while groups(shift).iter().product::<i64>() > MAX_BITS {
+        while groups(shift).iter().product::<i64>() > budget {
             shift += 1;
         }
         let dims = groups(shift);
         let mut occupancy = Occupancy {
             shift,
             dims,
-            bits: vec![0; (dims.iter().product::<i64>() as usize).div_ceil(64)],
+            distance: vec![u8::MAX; dims.iter().product::<i64>() as usize],
         };
         let coarser = shift - 2 * BLOCK_SHIFT;
         for key in regions {
-            let g = unpack_key(key).map(|r| r >> coarser);
-            let i = occupancy.index(g);
-            occupancy.bits[i / 64] |= 1 << (i % 64);
+            let i = occupancy.index(unpack_key(key).map(|r| r >> coarser));
+            occupancy.distance[i] = 0;
         }
+        chessboard_distances(&mut occupancy.distance, dims);
         occupancy
     }
 
@@ -56,45 +79,154 @@ impl Occupancy {
         ((g[2] * self.dims[1] + g[1]) * self.dims[0] + g[0]) as usize
     }
 
-    /// Whether the group holding cell `c` (inside the level) may hold anything.
+    /// 0 when the group holding cell `c` (inside the level) may hold
+    /// anything; else `k ≥ 1`, and every group within chessboard distance
+    /// `k − 1` of it is empty (groups outside the box count as empty).
     #[inline(always)]
-    pub fn holds(&self, c: [i64; 3]) -> bool {
-        let i = self.index(c.map(|v| v >> self.shift));
-        self.bits[i / 64] >> (i % 64) & 1 != 0
+    pub fn distance(&self, c: [i64; 3]) -> u8 {
+        self.distance[self.index(c.map(|v| v >> self.shift))]
     }
 
     pub fn bytes(&self) -> usize {
-        self.bits.len() * 8
+        self.distance.len()
     }
 }
+
+/// Turns 0 (occupied) / 255 (empty) into each entry's chessboard distance to
+/// the nearest 0, capped at 255, in place.
+///
+/// The chessboard distance is the chamfer distance of the 26-neighbourhood
+/// with unit weights, so Rosenfeld & Pfaltz's two raster passes compute it
+/// exactly: each pass lowers an entry to one more than its smallest
+/// neighbour among the 13 already visited (forward, then backward). A
+/// shortest chessboard path can be taken monotone in each axis, split into a
+/// part the forward pass propagates and one the backward pass does. Groups
+/// beyond the box are not neighbours, which leaves them empty.
+fn chessboard_distances(distance: &mut [u8], dims: [i64; 3]) {
+    let [nx, ny, nz] = dims;
+    let index = |x: i64, y: i64, z: i64| ((z * ny + y) * nx + x) as usize;
+    let inside = |x: i64, y: i64, z: i64| {
+        (0..nx).contains(&x) && (0..ny).contains(&y) && (0..nz).contains(&z)
+    };
+    for sign in [-1, 1] {
+        // Forward (sign −1: the neighbours visited before are at −offset)
+        // runs x, y, z upwards; backward runs them downwards.
+        let along = |n: i64, i: i64| if sign < 0 { i } else { n - 1 - i };
+        for z in (0..nz).map(|i| along(nz, i)) {
+            for y in (0..ny).map(|i| along(ny, i)) {
+                for x in (0..nx).map(|i| along(nx, i)) {
+                    let here = index(x, y, z);
+                    if distance[here] == 0 {
+                        continue;
+                    }
+                    let mut nearest = distance[here] - 1;
+                    for (dx, dy, dz) in VISITED_BEFORE {
+                        let (x, y, z) = (x + sign * dx, y + sign * dy, z + sign * dz);
+                        if inside(x, y, z) {
+                            nearest = nearest.min(distance[index(x, y, z)]);
+                        }
+                    }
+                    distance[here] = nearest.saturating_add(1);
+                }
+            }
+        }
+    }
+}
+
+/// The 13 neighbours a forward raster pass (x fastest, then y, then z)
+/// visits before an entry, as offsets to be negated: a backward pass
+/// visits their mirror images first.
+const VISITED_BEFORE: [(i64, i64, i64); 13] = [
+    (1, 0, 0),
+    (-1, 1, 0),
+    (0, 1, 0),
+    (1, 1, 0),
+    (-1, -1, 1),
+    (0, -1, 1),
+    (1, -1, 1),
+    (-1, 0, 1),
+    (0, 0, 1),
+    (1, 0, 1),
+    (-1, 1, 1),
+    (0, 1, 1),
+    (1, 1, 1),
+];
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::index::grid::table::block_key;
+    use crate::rng::Rng;
 
     #[test]
-    fn marks_the_groups_of_occupied_regions_and_no_others() {
+    fn zero_on_the_groups_of_occupied_regions_and_nowhere_else() {
         // 100 × 40 × 9 cells: regions (16 cells a side) 7 × 3 × 1.
         let occupied = [[0, 0, 0], [6, 2, 0], [3, 1, 0]];
-        let map = Occupancy::new([100, 40, 9], occupied.iter().map(|&r| block_key(r)));
+        let map = Occupancy::new([100, 40, 9], 3, occupied.iter().map(|&r| block_key(r)));
         assert_eq!(map.shift, 4);
         for x in 0..100 {
             for y in 0..40 {
                 for z in 0..9 {
                     let region = [x >> 4, y >> 4, z >> 4];
-                    assert_eq!(map.holds([x, y, z]), occupied.contains(&region));
+                    assert_eq!(map.distance([x, y, z]) == 0, occupied.contains(&region));
                 }
             }
         }
     }
 
     #[test]
-    fn a_huge_box_gets_coarser_groups_within_the_bit_budget() {
+    fn a_huge_box_gets_coarser_groups_within_the_budget() {
         let side = 1 << 21;
-        let map = Occupancy::new([side; 3], [block_key([5, 0, 9])].into_iter());
-        assert!(map.bytes() as i64 * 8 <= MAX_BITS);
-        assert!(map.holds([5 << 4, 0, 9 << 4]));
-        assert!(!map.holds([side - 1, side - 1, side - 1]));
+        for (spheres, most) in [
+            (1, SMALL_SCENE_GROUPS),
+            (100_000, 800_000),
+            (10_000_000, MAX_GROUPS),
+        ] {
+            let map = Occupancy::new([side; 3], spheres, [block_key([5, 0, 9])].into_iter());
+            assert!(
+                map.bytes() as i64 <= most,
+                "{spheres} spheres: {} bytes",
+                map.bytes()
+            );
+            assert!(
+                map.bytes() as i64 > most / 8,
+                "{spheres} spheres: {} bytes",
+                map.bytes()
+            );
+            assert_eq!(map.distance([5 << 4, 0, 9 << 4]), 0);
+            assert!(map.distance([side - 1, side - 1, side - 1]) > 0);
+        }
+    }
+
+    /// Every entry equals the brute-force distance to the nearest occupied
+    /// group, on random boxes and densities (an empty box stays 255).
+    #[test]
+    fn distances_are_exact_chessboard_distances() {
+        let mut rng = Rng::new(7);
+        for case in 0..200 {
+            let dims = [0; 3].map(|_| 1 + (rng.next_u64() % 12) as i64);
+            let groups = dims.iter().product::<i64>() as usize;
+            let density = [0.0, 0.002, 0.02, 0.2][case % 4];
+            let mut field: Vec<u8> = (0..groups)
+                .map(|_| if rng.unit() < density { 0 } else { 255 })
+                .collect();
+            let seeds: Vec<[i64; 3]> = (0..groups as i64)
+                .filter(|&n| field[n as usize] == 0)
+                .map(|n| [n % dims[0], n / dims[0] % dims[1], n / (dims[0] * dims[1])])
+                .collect();
+            chessboard_distances(&mut field, dims);
+            for n in 0..groups as i64 {
+                let g = [n % dims[0], n / dims[0] % dims[1], n / (dims[0] * dims[1])];
+                let expected = seeds
+                    .iter()
+                    .map(|s| (0..3).map(|a| (s[a] - g[a]).abs()).max().unwrap())
+                    .min()
+                    .map_or(255, |d| d.min(255) as u8);
+                assert_eq!(
+                    field[n as usize], expected,
+                    "case {case}, dims {dims:?}, group {g:?}"
+                );
+            }
+        }
     }
 }

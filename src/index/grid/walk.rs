@@ -4,9 +4,11 @@
 //! crosses the next cell boundary. That t is always recomputed from the
 //! integer index, `(origin + i·h − o) / d`, never accumulated, so it cannot
 //! drift over a million cells. An axis the ray runs parallel to (d = ±0)
-//! never steps: its next crossing is +∞. Empty space is crossed a group at
-//! a time: an empty group of regions, region (4×4×4 blocks) or block in one
-//! step, the walk moving to the first cell of the next group along the ray.
+//! never steps: its next crossing is +∞. Empty space is crossed a cube at
+//! a time: the empty groups of regions around the walk's one (as far as the
+//! level's proximity cloud says), an empty region (4×4×4 blocks) or an empty
+//! block in one step, the walk moving to the first cell beyond the cube
+//! along the ray.
 
 use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT};
 use super::{EmptySpace, Level};
@@ -40,8 +42,48 @@ impl Ray64 {
     }
 }
 
+/// The per-axis constants a ray's walk through a level steps with.
+struct Axes {
+    /// −1, 0 or 1: which way the ray's cell index moves on each axis.
+    step: [i64; 3],
+    /// 1 where the ray travels up the axis, else 0: the next plane it
+    /// crosses from cell `c` is plane `c + up`.
+    up: [i64; 3],
+    /// 1/d, or 0 where d = ±0.
+    inv: [f64; 3],
+    /// +∞ where d = ±0 (the ray never crosses that axis's planes), else 0:
+    /// added to a crossing's t, it spares a branch on the direction.
+    never: [f64; 3],
+}
+
+impl Axes {
+    fn new(ray: &Ray64) -> Self {
+        Axes {
+            step: ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64),
+            up: ray.d.map(|d| (d > 0.0) as i64),
+            inv: [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] }),
+            never: ray.d.map(|d| if d == 0.0 { f64::INFINITY } else { 0.0 }),
+        }
+    }
+}
+
 /// Cells per region side, as a power of two (a region is 4×4×4 blocks).
 const REGION_SHIFT: u32 = 2 * BLOCK_SHIFT;
+
+/// A cube of empty cells around the walk's cell: groups of `1 << shift`
+/// cells a side, `radius` of them on every side of the group holding it.
+#[derive(Clone, Copy)]
+struct Empty {
+    shift: u32,
+    radius: i64,
+}
+
+impl Empty {
+    /// The group of `1 << shift` cells a side holding the walk's cell.
+    fn group(shift: u32) -> Self {
+        Empty { shift, radius: 0 }
+    }
+}
 
 /// The last group looked up: a ray crosses several cells of a block, and
 /// several blocks of a region, one after another.
@@ -94,20 +136,13 @@ fn first_axis(t: &[f64; 3]) -> usize {
 }
 
 impl Level {
-    /// The t at which the ray crosses the plane between cells `i − 1` and `i` on `axis`.
+    /// The t at which the ray leaves cell `c` across a plane of `axis`
+    /// (+∞ if it never does): the plane between cells `i − 1` and `i` lies
+    /// at `origin + i·cell`.
     #[inline(always)]
-    fn plane_t(&self, ray: &Ray64, axis: usize, i: i64) -> f64 {
-        (self.origin[axis] + i as f64 * self.cell - ray.o[axis]) * ray.inv[axis]
-    }
-
-    /// The t of the next boundary crossing on `axis` from cell `c` stepping by `step`.
-    #[inline(always)]
-    fn next_crossing(&self, ray: &Ray64, axis: usize, c: i64, step: i64) -> f64 {
-        match step {
-            0 => f64::INFINITY,
-            1 => self.plane_t(ray, axis, c + 1),
-            _ => self.plane_t(ray, axis, c),
-        }
+    fn next_crossing(&self, ray: &Ray64, axes: &Axes, axis: usize, c: i64) -> f64 {
+        let i = c + axes.up[axis];
+        (self.origin[axis] + i as f64 * self.cell - ray.o[axis]) * axes.inv[axis] + axes.never[axis]
     }
 
     /// The part of [t_lo, t_hi] the ray spends inside this level's box.
@@ -150,15 +185,15 @@ impl Level {
         let Some((t0, mut limit)) = self.clip(ray, t_lo, t_hi) else {
             return;
         };
-        let step = ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64);
+        let axes = Axes::new(ray);
         let mut c = [0; 3];
         let mut t_next = [0.0; 3];
         for a in 0..3 {
             c[a] = self.cell_at(ray, t0, a, 0, self.dims[a] - 1);
-            t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
+            t_next[a] = self.next_crossing(ray, &axes, a, c[a]);
         }
         if empty_space == EmptySpace::ProbeEveryCell {
-            return self.walk_probing(ray, c, t_next, step, limit, visit);
+            return self.walk_probing(ray, &axes, c, t_next, limit, visit);
         }
         let mut region = Cached::<u64>::new();
         // The block the walk is in, once it is known to be occupied.
@@ -173,8 +208,8 @@ impl Level {
                         block = Some((key, cells));
                         cells
                     }
-                    Err(shift) => {
-                        if !self.leave_group(ray, &mut c, &mut t_next, step, limit, shift) {
+                    Err(empty) => {
+                        if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
                             return;
                         }
                         continue;
@@ -185,18 +220,18 @@ impl Level {
                 let wanted = visit(self.candidates(cells.cell_index(cell_bit(c))));
                 limit = limit.min(wanted);
             }
-            if !self.step(ray, &mut c, &mut t_next, step, limit) {
+            if !self.step(ray, &axes, &mut c, &mut t_next, limit) {
                 return;
             }
         }
     }
 
     /// The occupied block `key` (at block coordinates `b`) the walk enters
-    /// at cell `c`, or the shift of the empty group around it to cross in one
-    /// step. Empty space at three scales: a clear bit of the occupancy
-    /// bitmap, a region (4×4×4 blocks) with no occupied block, and an empty
-    /// block of an occupied region, the last read from the region's mask
-    /// without probing the block table.
+    /// at cell `c`, or the empty cube around it to cross in one step. Empty
+    /// space at three scales: the empty groups around `c`'s in the level's
+    /// proximity cloud, a region (4×4×4 blocks) with no occupied block, and
+    /// an empty block of an occupied region, the last read from the
+    /// region's mask without probing the block table.
     #[inline(always)]
     fn enter_block(
         &self,
@@ -204,18 +239,22 @@ impl Level {
         b: [i64; 3],
         key: BlockKey,
         region: &mut Cached<u64>,
-    ) -> Result<Block, u32> {
-        if !self.occupancy.holds(c) {
-            return Err(self.occupancy.shift);
+    ) -> Result<Block, Empty> {
+        let distance = self.occupancy.distance(c);
+        if distance > 0 {
+            return Err(Empty {
+                shift: self.occupancy.shift,
+                radius: i64::from(distance) - 1,
+            });
         }
         let blocks = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
             self.regions.get(k)
         });
         if blocks == 0 {
-            return Err(REGION_SHIFT);
+            return Err(Empty::group(REGION_SHIFT));
         }
         if blocks >> cell_bit(b) & 1 == 0 {
-            return Err(BLOCK_SHIFT);
+            return Err(Empty::group(BLOCK_SHIFT));
         }
         Ok(self.table.get(key).unwrap_or_default())
     }
@@ -224,9 +263,9 @@ impl Level {
     fn walk_probing(
         &self,
         ray: &Ray64,
+        axes: &Axes,
         mut c: [i64; 3],
         mut t_next: [f64; 3],
-        step: [i64; 3],
         mut limit: f64,
         mut visit: impl FnMut(&[u32]) -> f64,
     ) {
@@ -236,7 +275,7 @@ impl Level {
                     limit = limit.min(visit(self.candidates(b.cell_index(cell_bit(c)))));
                 }
             }
-            if !self.step(ray, &mut c, &mut t_next, step, limit) {
+            if !self.step(ray, axes, &mut c, &mut t_next, limit) {
                 return;
             }
         }
@@ -248,47 +287,42 @@ impl Level {
     fn step(
         &self,
         ray: &Ray64,
+        axes: &Axes,
         c: &mut [i64; 3],
         t_next: &mut [f64; 3],
-        step: [i64; 3],
         limit: f64,
     ) -> bool {
         let a = first_axis(t_next);
         if t_next[a] > limit || t_next[a] == f64::INFINITY {
             return false;
         }
-        c[a] += step[a];
+        c[a] += axes.step[a];
         if c[a] < 0 || c[a] >= self.dims[a] {
             return false;
         }
-        t_next[a] = self.next_crossing(ray, a, c[a], step[a]);
+        t_next[a] = self.next_crossing(ray, axes, a, c[a]);
         true
     }
 
-    /// Moves from an empty group of cells (a cube of side `1 << shift`
-    /// cells: a block or a region) to the first cell the ray enters beyond
-    /// it. False when that lies beyond `limit` or outside the level.
-    fn leave_group(
+    /// Moves from the empty cube around cell `c` to the first cell the ray
+    /// enters beyond it. False when that lies beyond `limit` or outside the
+    /// level.
+    fn leave_empty(
         &self,
         ray: &Ray64,
+        axes: &Axes,
         c: &mut [i64; 3],
         t_next: &mut [f64; 3],
-        step: [i64; 3],
         limit: f64,
-        shift: u32,
+        empty: Empty,
     ) -> bool {
-        let side = 1i64 << shift;
-        let block = c.map(|v| v >> shift << shift);
-        // The block's last cell along each axis's direction of travel.
-        let mut exits = [0.0; 3];
-        for a in 0..3 {
-            let last = if step[a] > 0 {
-                block[a] + side - 1
-            } else {
-                block[a]
-            };
-            exits[a] = self.next_crossing(ray, a, last, step[a]);
-        }
+        let (shift, r) = (empty.shift, empty.radius);
+        // The cube's first and last cells per axis.
+        let low = c.map(|v| ((v >> shift) - r) << shift);
+        let high = c.map(|v| (((v >> shift) + r + 1) << shift) - 1);
+        // The cube's last cell along each axis's direction of travel.
+        let last = [0, 1, 2].map(|a| if axes.up[a] == 1 { high[a] } else { low[a] });
+        let exits = [0, 1, 2].map(|a| self.next_crossing(ray, axes, a, last[a]));
         let a = first_axis(&exits);
         let t_exit = exits[a];
         if t_exit > limit || t_exit == f64::INFINITY {
@@ -296,22 +330,23 @@ impl Level {
         }
         for k in 0..3 {
             c[k] = if k == a {
-                if step[k] > 0 {
-                    block[k] + side
-                } else {
-                    block[k] - 1
-                }
-            } else if step[k] > 0 {
-                self.cell_at(ray, t_exit, k, c[k], block[k] + side - 1)
-            } else if step[k] < 0 {
-                self.cell_at(ray, t_exit, k, block[k], c[k])
-            } else {
+                last[k] + axes.step[k]
+            } else if axes.step[k] == 0 {
                 c[k]
+            } else {
+                // Between the ray's cell and the cube's last along k: only
+                // rounding could put the exit point outside.
+                let (lo, hi) = if axes.up[k] == 1 {
+                    (c[k], high[k])
+                } else {
+                    (low[k], c[k])
+                };
+                self.cell_at(ray, t_exit, k, lo, hi)
             };
             if c[k] < 0 || c[k] >= self.dims[k] {
                 return false;
             }
-            t_next[k] = self.next_crossing(ray, k, c[k], step[k]);
+            t_next[k] = self.next_crossing(ray, axes, k, c[k]);
         }
         true
     }
