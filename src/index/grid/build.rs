@@ -58,6 +58,8 @@
 //! cells. [`ERROR_SAFETY`] is the `c`, chosen with a wide margin over the ~4
 //! the operation count gives; the property tests check the bound.
 
+mod radix;
+
 use super::occupancy::Occupancy;
 use super::table::{
     block_key, cell_bit, regions, Block, BlockKey, BlockTable, RegionTable, BLOCK_SHIFT,
@@ -66,10 +68,13 @@ use super::table::{
 use super::walk::floor_to_int;
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
-use glam::DVec3;
+use glam::{DVec3, I64Vec3};
+use radix::{sort_by_bits, sorted_by_bits, RadixKey};
+use rayon::iter::Either;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-use voracious_radix_sort::RadixSort;
+use std::ops::{BitOr, Shl, Shr};
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 
 /// The ratio of the largest to the smallest reach a level holds.
 pub const LEVEL_SPAN: f64 = 4.0;
@@ -118,11 +123,61 @@ impl Extent {
             slack: chord + pad,
         }
     }
+}
 
-    /// The histogram bin of the reach.
-    fn bin(&self) -> i32 {
-        (self.reach.log2() * BINS_PER_OCTAVE).floor() as i32
+/// The histogram bin of a reach.
+fn bin_of(reach: f64) -> i32 {
+    (reach.log2() * BINS_PER_OCTAVE).floor() as i32
+}
+
+/// Every sphere's [`Extent`], one array per field: most passes read one
+/// or two fields of many spheres, and read only those from memory.
+struct Extents {
+    center: Vec<DVec3>,
+    reach: Vec<f64>,
+    slack: Vec<f64>,
+}
+
+impl Extents {
+    fn of<R: Real>(shapes: &[Ellipsoid<R>], m: f64) -> Extents {
+        let n = shapes.len();
+        let mut extents = Extents {
+            center: vec![DVec3::ZERO; n],
+            reach: vec![0.0; n],
+            slack: vec![0.0; n],
+        };
+        let fields = (
+            &mut extents.center,
+            &mut extents.reach,
+            &mut extents.slack,
+            shapes,
+        );
+        fields
+            .into_par_iter()
+            .for_each(|(center, reach, slack, shape)| {
+                let e = Extent::of(shape, m);
+                (*center, *reach, *slack) = (e.center, e.reach, e.slack);
+            });
+        extents
     }
+
+    /// The largest reach among `ids`.
+    fn max_reach(&self, ids: &[u32]) -> f64 {
+        ids.par_iter()
+            .map(|&id| self.reach[id as usize])
+            .reduce(|| 0.0, f64::max)
+    }
+}
+
+/// `1 / cell` for a normal power-of-two `cell`: exact, so that `x * (1 / cell)`
+/// is `x / cell` to the bit (both are x scaled by a power of two, rounded
+/// once) at the price of a product instead of a quotient.
+fn reciprocal(cell: f64) -> f64 {
+    debug_assert!(
+        cell.is_normal() && cell.to_bits() & ((1 << 52) - 1) == 0,
+        "{cell} is not a normal power of two"
+    );
+    1.0 / cell
 }
 
 /// How many times a sparse level's cells may double beyond the sphere size.
@@ -145,11 +200,12 @@ const MAX_OCCUPANCY_BITS: usize = 1 << 22;
 /// per centre (a power of two, 512 B to 512 KiB), so the cells, never more
 /// than the centres, stay well under m up to 2²⁰ centres, and a small scene
 /// neither zeroes nor keeps a large bitmap.
-fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
+fn centres_per_occupied_cell(extents: &Extents, ids: &[u32], cell: f64) -> f64 {
     let bitmap_bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
         .next_power_of_two()
         .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
     let (words, shift) = (bitmap_bits / 64, 64 - bitmap_bits.trailing_zeros());
+    let per_cell = reciprocal(cell);
     // One bitmap per thread's share, not per small chunk: a bitmap may be 512 KiB.
     let share = ids
         .len()
@@ -160,9 +216,8 @@ fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 
         .map(|chunk| {
             let mut bits = vec![0u64; words];
             for &id in chunk {
-                let c = (extents[id as usize].center / cell)
-                    .to_array()
-                    .map(floor_to_int);
+                let p = extents.center[id as usize] * per_cell;
+                let c = [floor_to_int(p.x), floor_to_int(p.y), floor_to_int(p.z)];
                 let key = (c[0] as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
                     ^ (c[1] as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
                     ^ (c[2] as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
@@ -218,17 +273,10 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
             bound: Vec::new(),
         };
     }
-    let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
-    let bins: Vec<i32> = extents.par_iter().map(Extent::bin).collect();
+    let extents = Extents::of(shapes, m);
+    let bins: Vec<i32> = extents.reach.par_iter().map(|&r| bin_of(r)).collect();
     let classes = size_classes(&histogram(&bins));
-    let class_of = |bin: i32| classes.partition_point(|c| c.lowest_bin > bin);
-    let mut members: Vec<Vec<u32>> = vec![Vec::new(); classes.len()];
-    for (k, ids) in members.iter_mut().enumerate() {
-        *ids = (0..shapes.len() as u32)
-            .into_par_iter()
-            .filter(|&id| class_of(bins[id as usize]) == k)
-            .collect();
-    }
+    let mut members = members_by_class(&bins, &classes);
     // The coarsest classes, while small together, are the short list.
     let mut short_ids = Vec::new();
     let mut first_level = 0;
@@ -249,12 +297,21 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
         .into_iter()
         .rev()
         .map(|(cell, mut ids)| {
-            // Classes that share a level arrive one after another, each in id order.
-            ids.par_sort_unstable();
+            // Parts that share a level arrive one after another, each in id order.
+            if !ids.is_sorted() {
+                sort_by_bits(
+                    &mut ids,
+                    0,
+                    u32::BITS - (shapes.len() as u32).leading_zeros(),
+                );
+            }
             build_level(&extents, &ids, f64::from_bits(cell), &mut rank, &mut order)
         })
         .collect();
-    let bound = extents.par_iter().map(|e| e.reach + e.slack).collect();
+    let bound = (&extents.reach, &extents.slack)
+        .into_par_iter()
+        .map(|(reach, slack)| reach + slack)
+        .collect();
     Built {
         levels,
         short,
@@ -263,8 +320,52 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
     }
 }
 
+/// Bins per task of the histogram and the class lists.
+const BIN_CHUNK: usize = 1 << 16;
+/// Widest range of bins counted in an array; every finite nonzero reach
+/// lies in one of about 17 000 bins (2⁻¹⁰⁷⁴..2¹⁰²⁴ at 8 a factor 2).
+const MAX_DENSE_BINS: usize = 1 << 15;
+
 /// How many spheres fall in each histogram bin, largest bin first.
+///
+/// Counted in an array over the bins' range (one increment per sphere); a
+/// range too wide for one (a reach of 0 among others) is counted in a map.
 fn histogram(bins: &[i32]) -> Vec<(i32, usize)> {
+    let (low, high) = bins
+        .par_iter()
+        .fold(|| (i32::MAX, i32::MIN), |(l, h), &b| (l.min(b), h.max(b)))
+        .reduce(|| (i32::MAX, i32::MIN), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    if bins.is_empty() {
+        return Vec::new();
+    }
+    let width = (i64::from(high) - i64::from(low) + 1) as usize;
+    if width > MAX_DENSE_BINS {
+        return sparse_histogram(bins);
+    }
+    let offset = |b: i32| (i64::from(b) - i64::from(low)) as usize;
+    let counts = bins
+        .par_chunks(BIN_CHUNK)
+        .map(|chunk| {
+            let mut counts = vec![0usize; width];
+            chunk.iter().for_each(|&b| counts[offset(b)] += 1);
+            counts
+        })
+        .reduce(
+            || vec![0; width],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    (low..=high)
+        .rev()
+        .map(|bin| (bin, counts[offset(bin)]))
+        .filter(|&(_, n)| n > 0)
+        .collect()
+}
+
+/// [`histogram`] for any range of bins: one map entry per bin.
+fn sparse_histogram(bins: &[i32]) -> Vec<(i32, usize)> {
     let counts = bins
         .par_iter()
         .fold(BTreeMap::new, |mut counts, &b| {
@@ -278,6 +379,34 @@ fn histogram(bins: &[i32]) -> Vec<(i32, usize)> {
             a
         });
     counts.into_iter().rev().collect()
+}
+
+/// Each class's sphere ids, ascending: every task sorts its run of ids
+/// into per-class lists, which are then joined in order (one pass over the
+/// spheres, where a filter per class makes one pass per class).
+fn members_by_class(bins: &[i32], classes: &[SizeClass]) -> Vec<Vec<u32>> {
+    let class_of = |bin: i32| classes.partition_point(|c| c.lowest_bin > bin);
+    let runs: Vec<Vec<Vec<u32>>> = bins
+        .par_chunks(BIN_CHUNK)
+        .enumerate()
+        .map(|(r, chunk)| {
+            let mut lists = vec![Vec::new(); classes.len()];
+            for (id, &bin) in (r * BIN_CHUNK..).zip(chunk) {
+                lists[class_of(bin)].push(id as u32);
+            }
+            lists
+        })
+        .collect();
+    let mut members: Vec<Vec<u32>> = classes
+        .iter()
+        .map(|c| Vec::with_capacity(c.spheres))
+        .collect();
+    for lists in runs {
+        for (ids, list) in members.iter_mut().zip(lists) {
+            ids.extend(list);
+        }
+    }
+    members
 }
 
 /// A run of histogram bins that becomes one level (or the short list).
@@ -330,13 +459,27 @@ fn size_classes(histogram: &[(i32, usize)]) -> Vec<SizeClass> {
 /// coarser than they would have had alone, and one walk costs less than
 /// two. Keyed by the cell's bits, coarsest last.
 fn merge_equal_cells(
-    extents: &[Extent],
+    extents: &Extents,
     parts: impl Iterator<Item = Vec<u32>>,
 ) -> BTreeMap<u64, Vec<u32>> {
     let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
     for ids in parts {
-        let mut cell = choose_cell(extents, &ids);
-        if let Some((&bits, _)) = by_cell.range(..=cell.to_bits()).next_back() {
+        // The level a cell joins: the coarsest made that is no coarser.
+        // (Positive f64s order as their bits do.)
+        let joins = |cell: f64| {
+            by_cell
+                .range(..=cell.to_bits())
+                .next_back()
+                .map(|(&b, _)| b)
+        };
+        // Its cell need not be known exactly once every cell still
+        // possible joins the same level.
+        let same_level = |finest: f64, coarsest: f64| {
+            let level = joins(finest);
+            level.is_some() && level == joins(coarsest)
+        };
+        let mut cell = choose_cell(extents, &ids, same_level);
+        if let Some(bits) = joins(cell) {
             cell = f64::from_bits(bits);
         }
         let mut ids = ids;
@@ -344,7 +487,7 @@ fn merge_equal_cells(
         while let Some(mut other) = by_cell.remove(&cell.to_bits()) {
             other.append(&mut ids);
             ids = other;
-            let again = choose_cell(extents, &ids);
+            let again = choose_cell(extents, &ids, |_, _| false);
             if again == cell {
                 break;
             }
@@ -369,55 +512,154 @@ const MIN_SPLIT_SHARE: f64 = 1.0 / 64.0;
 /// step for every small empty cell between two grains of dust. A sphere is
 /// sparse when the cell of [`DENSITY_PROBE`] finest cells a side that holds
 /// its centre holds at most [`SPARSE_NEIGHBOURS`] centres.
-fn split_by_density(extents: &[Extent], ids: Vec<u32>) -> Vec<Vec<u32>> {
-    let reach = ids
-        .par_iter()
-        .map(|&id| extents[id as usize].reach)
-        .reduce(|| 0.0, f64::max);
+fn split_by_density(extents: &Extents, ids: Vec<u32>) -> Vec<Vec<u32>> {
+    let reach = extents.max_reach(&ids);
     let probe = (2.0 * reach).log2().ceil().exp2() * DENSITY_PROBE;
-    let key = |id: u32| {
-        let c = (extents[id as usize].center / probe)
-            .to_array()
-            .map(|v| floor_to_int(v) as u64 & ((1 << 21) - 1));
-        c[0] | c[1] << 21 | c[2] << 42
+    let per_probe = reciprocal(probe);
+    let cells: Vec<[i64; 3]> = ids
+        .par_iter()
+        .map(|&id| {
+            let p = extents.center[id as usize] * per_probe;
+            [floor_to_int(p.x), floor_to_int(p.y), floor_to_int(p.z)]
+        })
+        .collect();
+    let code = ProbeCode::new(&cells);
+    let crowded = if code.bits() <= u64::BITS {
+        crowded_members::<u64>(&code, &cells)
+    } else {
+        crowded_members::<u128>(&code, &cells)
     };
-    let mut keys: Vec<u64> = ids.par_iter().map(|&id| key(id)).collect();
-    keys.voracious_mt_sort(rayon::current_num_threads());
-    let crowded = |id: u32| {
-        let k = key(id);
-        let count = keys.partition_point(|&x| x <= k) - keys.partition_point(|&x| x < k);
-        count > SPARSE_NEIGHBOURS as usize
-    };
-    let (dense, sparse): (Vec<u32>, Vec<u32>) = ids.par_iter().partition(|&&id| crowded(id));
-    let smaller = dense.len().min(sparse.len()) as f64;
+    let dense = crowded.iter().filter(|c| c.load(Relaxed)).count();
+    let smaller = dense.min(ids.len() - dense) as f64;
     if smaller < MIN_SPLIT_SHARE * ids.len() as f64 {
         return vec![ids];
     }
+    let (dense, sparse): (Vec<u32>, Vec<u32>) =
+        ids.par_iter()
+            .zip(&crowded)
+            .partition_map(|(&id, c)| match c.load(Relaxed) {
+                true => Either::Left(id),
+                false => Either::Right(id),
+            });
     vec![dense, sparse]
 }
 
-/// The cell side of a level: the smallest power of two at least its largest
-/// diameter, doubled while cells stay sparse.
-fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
-    let reach = ids
+/// Probe cells repeat every this many a side: cells that far apart count
+/// as one.
+const PROBE_WRAP: i64 = 1 << 21;
+
+/// (probe cell, member) pairs packed into one integer that sorts by cell,
+/// then the member's position. On an axis whose cells span less than
+/// [`PROBE_WRAP`], a coordinate is packed as its offset from the lowest (in
+/// as many bits as the span needs), which is equal for two cells iff they
+/// are equal modulo [`PROBE_WRAP`]; on a wider axis, as itself modulo
+/// [`PROBE_WRAP`]. Runs of equal packed cells are then the centres of one
+/// probe cell, and a pair fits a u64 unless the class spans more than
+/// about 2⁴⁴ probe cells.
+struct ProbeCode {
+    low: [i64; 3],
+    /// Bits of each axis's coordinate.
+    axis_bits: [u32; 3],
+    member_bits: u32,
+}
+
+impl ProbeCode {
+    fn new(cells: &[[i64; 3]]) -> Self {
+        let bounds = |a: ([i64; 3], [i64; 3]), c: [i64; 3]| {
+            (
+                [0, 1, 2].map(|k| a.0[k].min(c[k])),
+                [0, 1, 2].map(|k| a.1[k].max(c[k])),
+            )
+        };
+        let empty = || ([i64::MAX; 3], [i64::MIN; 3]);
+        let (low, high) = cells
+            .par_iter()
+            .fold(empty, |a, &c| bounds(a, c))
+            .reduce(empty, |a, b| bounds(bounds(a, b.0), b.1));
+        let span = |k: usize| (i128::from(high[k]) - i128::from(low[k])).max(0);
+        let narrow = |k: usize| span(k) < i128::from(PROBE_WRAP);
+        ProbeCode {
+            low: [0, 1, 2].map(|k| if narrow(k) { low[k] } else { 0 }),
+            axis_bits: [0, 1, 2].map(|k| match narrow(k) {
+                true => u128::BITS - span(k).leading_zeros(),
+                false => PROBE_WRAP.trailing_zeros(),
+            }),
+            member_bits: usize::BITS - cells.len().leading_zeros(),
+        }
+    }
+
+    fn bits(&self) -> u32 {
+        self.axis_bits.iter().sum::<u32>() + self.member_bits
+    }
+
+    fn pack<K: PairKey>(&self, c: [i64; 3], member: usize) -> K {
+        let [_, by, bz] = self.axis_bits;
+        let d = |k: usize| c[k].wrapping_sub(self.low[k]) as u64 & (PROBE_WRAP as u64 - 1);
+        // At most 3 · 21 bits.
+        let cell = (d(0) << by | d(1)) << bz | d(2);
+        K::from_u64(cell) << self.member_bits | K::from_u64(member as u64)
+    }
+
+    fn cell<K: PairKey>(&self, key: K) -> K {
+        key >> self.member_bits
+    }
+
+    fn member<K: PairKey>(&self, key: K) -> usize {
+        (key.low_u64() & ((1 << self.member_bits) - 1)) as usize
+    }
+}
+
+/// Per member (position in `cells`), whether more than
+/// [`SPARSE_NEIGHBOURS`] members share its probe cell.
+///
+/// Sorted, a cell's pairs form one run. With T = [`SPARSE_NEIGHBOURS`], a
+/// position lies in a run of more than T iff one of the T + 1 windows of
+/// T + 1 consecutive positions that hold it has equal cells at both ends
+/// (sorted, so equal all through). Each position is judged from those
+/// windows alone, so the tasks need not stitch runs across their borders.
+fn crowded_members<K: PairKey>(code: &ProbeCode, cells: &[[i64; 3]]) -> Vec<AtomicBool> {
+    let mut pairs: Vec<K> = cells
         .par_iter()
-        .map(|&id| extents[id as usize].reach)
-        .reduce(|| 0.0, f64::max);
+        .enumerate()
+        .map(|(member, &c)| code.pack(c, member))
+        .collect();
+    // Only runs of equal cells matter here, not the order within them.
+    sort_by_bits(&mut pairs, code.member_bits, code.bits() - code.member_bits);
+    let t = SPARSE_NEIGHBOURS as usize;
+    let same_ends =
+        |j: usize| j + t < pairs.len() && code.cell(pairs[j]) == code.cell(pairs[j + t]);
+    let crowded: Vec<AtomicBool> = cells.iter().map(|_| AtomicBool::new(false)).collect();
+    (0..pairs.len()).into_par_iter().for_each(|i| {
+        if (i.saturating_sub(t)..=i).any(same_ends) {
+            crowded[code.member(pairs[i])].store(true, Relaxed);
+        }
+    });
+    crowded
+}
+/// The cell side of a level: the smallest power of two at least its largest
+/// diameter, doubled while cells stay sparse. The search stops early, at
+/// the finest cell still possible, once `settled(finest, coarsest)` says
+/// that any cell between the finest and the coarsest still possible will
+/// do for the caller.
+fn choose_cell(extents: &Extents, ids: &[u32], settled: impl Fn(f64, f64) -> bool) -> f64 {
+    let reach = extents.max_reach(ids);
     let finest = (2.0 * reach).log2().ceil().exp2();
     // Sparse levels: coarser cells while a cell still holds few centres, so
     // that rays cross fewer empty cells on their way to a sphere. Doubling
     // the cells merges them eight to one, so the centres per occupied cell
     // only grow with the doublings: search for the most that stay sparse
     // (a few passes over the level instead of one per doubling).
+    let cell = |doublings: i32| finest * f64::from(doublings).exp2();
     let sparse = |doublings: i32| {
-        let cell = finest * f64::from(doublings).exp2();
-        centres_per_occupied_cell(extents, ids, cell) <= MAX_CENTRES_PER_CELL
+        centres_per_occupied_cell(extents, ids, cell(doublings)) <= MAX_CENTRES_PER_CELL
     };
+    // The answer lies in good..bad (as doublings) all along.
+    let open = |good: i32, bad: i32| bad - good > 1 && !settled(cell(good), cell(bad - 1));
     // Galloping up from the finest cells first: a dense level, where most
     // spheres usually are, is settled by one pass.
     let (mut good, mut bad) = (0, MAX_COARSENING + 1);
     let mut probe = 1;
-    while probe < bad {
+    while probe < bad && open(good, bad) {
         if sparse(probe) {
             good = probe;
             probe *= 2;
@@ -425,7 +667,7 @@ fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
             bad = probe;
         }
     }
-    while bad - good > 1 {
+    while open(good, bad) {
         let mid = (good + bad) / 2;
         if sparse(mid) {
             good = mid;
@@ -433,13 +675,13 @@ fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
             bad = mid;
         }
     }
-    finest * f64::from(good).exp2()
+    cell(good)
 }
 
 /// Builds one level over `ids`, appending them to `order` as described in
 /// [`number_in_cell_order`].
 fn build_level(
-    extents: &[Extent],
+    extents: &Extents,
     ids: &[u32],
     mut cell: f64,
     rank: &mut [u32],
@@ -448,8 +690,8 @@ fn build_level(
     let (lo, hi, slack) = ids
         .par_iter()
         .map(|&id| {
-            let e = &extents[id as usize];
-            (e.center - e.reach, e.center + e.reach, e.slack)
+            let (center, reach) = (extents.center[id as usize], extents.reach[id as usize]);
+            (center - reach, center + reach, extents.slack[id as usize])
         })
         .reduce(
             || (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0),
@@ -461,16 +703,15 @@ fn build_level(
     // The lattice is anchored at a multiple of the cell side.
     let lo = (lo / cell).floor() * cell;
     let dims = ((hi - lo) / cell).floor().as_i64vec3() + 1;
-    let cell_of = |p: f64, axis: usize| -> i64 {
-        floor_to_int((p - lo[axis]) / cell).clamp(0, dims[axis] - 1)
+    let lattice = Lattice {
+        origin: lo,
+        per_cell: reciprocal(cell),
+        last: dims - 1,
     };
     let code = PairCode::new(dims.to_array(), ids.len());
-    // The cells a sphere overlaps: a box of them, low and high corner.
     let cell_box = |id: u32| {
-        let e = &extents[id as usize];
-        let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
-        let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
-        (a, b)
+        let id = id as usize;
+        lattice.cell_box(extents.center[id], extents.reach[id])
     };
     let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
         sorted_cells::<u64>(&code, ids, cell_box, rank, order)
@@ -492,6 +733,39 @@ fn build_level(
     }
 }
 
+/// A level's cells, for finding those a sphere overlaps.
+struct Lattice {
+    /// The low corner of cell (0, 0, 0).
+    origin: DVec3,
+    /// 1 / the cell side (see [`reciprocal`]).
+    per_cell: f64,
+    /// The highest cell on each axis.
+    last: I64Vec3,
+}
+
+impl Lattice {
+    /// The cells a ball overlaps: a box of them, low and high corner,
+    /// clamped to the lattice.
+    #[inline(always)]
+    fn cell_box(&self, center: DVec3, reach: f64) -> ([i64; 3], [i64; 3]) {
+        (self.cell_of(center - reach), self.cell_of(center + reach))
+    }
+
+    /// The cell holding `p`, clamped to the lattice.
+    #[inline(always)]
+    fn cell_of(&self, p: DVec3) -> [i64; 3] {
+        let c = (p - self.origin) * self.per_cell;
+        // ⌊v⌋ clamped to 0..=last (last ≥ 0): below 0 both ⌊v⌋ and v
+        // truncated come out 0, and from 0 up they are equal.
+        let clamped = |v: f64, last: i64| (v as i64).max(0).min(last);
+        [
+            clamped(c.x, self.last.x),
+            clamped(c.y, self.last.y),
+            clamped(c.z, self.last.z),
+        ]
+    }
+}
+
 /// (cell, sphere) pairs packed into integers that sort by block, then by
 /// cell within the block (the order a block's mask ranks its cells in), then
 /// by sphere id: the block's index in the level's box, the cell's bit, the
@@ -505,35 +779,36 @@ struct PairCode {
     id_bits: u32,
 }
 
-/// The integers [`PairCode`] packs into.
-trait PairKey: Copy + Ord + Send + Sync {
-    fn narrow(wide: u128) -> Self;
-    fn wide(self) -> u128;
-    /// Sorts `keys` ascending on the current rayon pool.
-    fn sort(keys: &mut [Self]);
+/// The integers [`PairCode`] and [`ProbeCode`] pack into: a u64 whenever
+/// the fields fit, as its arithmetic is cheaper and it sorts in half the
+/// memory.
+trait PairKey:
+    RadixKey + Ord + Shl<u32, Output = Self> + Shr<u32, Output = Self> + BitOr<Output = Self>
+{
+    fn from_u64(v: u64) -> Self;
+    /// The low 64 bits.
+    fn low_u64(self) -> u64;
 }
 
 impl PairKey for u64 {
-    fn sort(keys: &mut [Self]) {
-        keys.voracious_mt_sort(rayon::current_num_threads());
+    #[inline(always)]
+    fn from_u64(v: u64) -> Self {
+        v
     }
-    fn narrow(wide: u128) -> Self {
-        wide as u64
-    }
-    fn wide(self) -> u128 {
-        u128::from(self)
+    #[inline(always)]
+    fn low_u64(self) -> u64 {
+        self
     }
 }
 
 impl PairKey for u128 {
-    fn sort(keys: &mut [Self]) {
-        keys.voracious_mt_sort(rayon::current_num_threads());
+    #[inline(always)]
+    fn from_u64(v: u64) -> Self {
+        u128::from(v)
     }
-    fn narrow(wide: u128) -> Self {
-        wide
-    }
-    fn wide(self) -> u128 {
-        self
+    #[inline(always)]
+    fn low_u64(self) -> u64 {
+        self as u64
     }
 }
 
@@ -551,24 +826,45 @@ impl PairCode {
         u64::BITS - blocks.leading_zeros() + 3 * BLOCK_SHIFT + self.id_bits + 1
     }
 
-    fn pack<K: PairKey>(&self, c: [i64; 3], local: usize, home: bool) -> K {
-        let b = c.map(|v| (v >> BLOCK_SHIFT) as u64);
-        let block = (b[2] * self.blocks[1] + b[1]) * self.blocks[0] + b[0];
-        let cell = u128::from(block) << (3 * BLOCK_SHIFT) | u128::from(cell_bit(c));
-        K::narrow((cell << self.id_bits | local as u128) << 1 | u128::from(home))
+    /// Appends the pairs of the sphere at position `local` with the cells
+    /// of its box `low..=high`, a row along x at a time, the home pair
+    /// marked. A packed cell is `block << 6 | bit` (at most 3 · 19 + 6
+    /// bits), and along a row only x's share of either changes.
+    #[inline(always)]
+    fn push_box<K: PairKey>(
+        &self,
+        pairs: &mut Vec<K>,
+        (low, high): ([i64; 3], [i64; 3]),
+        local: usize,
+    ) {
+        let sphere = (local as u64) << 1;
+        let shift = self.id_bits + 1;
+        for z in low[2]..high[2] + 1 {
+            for y in low[1]..high[1] + 1 {
+                let row = ((z >> BLOCK_SHIFT) as u64 * self.blocks[1] + (y >> BLOCK_SHIFT) as u64)
+                    * self.blocks[0];
+                let row_bit = u64::from(cell_bit([0, y, z]));
+                let home_row = y == low[1] && z == low[2];
+                pairs.extend((low[0]..high[0] + 1).map(|x| {
+                    let block = row + (x >> BLOCK_SHIFT) as u64;
+                    let cell = block << (3 * BLOCK_SHIFT) | row_bit | (x & (BLOCK_SIDE - 1)) as u64;
+                    let home = home_row && x == low[0];
+                    K::from_u64(cell) << shift | K::from_u64(sphere | u64::from(home))
+                }));
+            }
+        }
     }
 
     /// The packed cell (block index and cell bit) and the sphere's position.
+    #[inline(always)]
     fn unpack<K: PairKey>(&self, key: K) -> (u64, usize) {
-        let key = key.wide() >> 1;
-        (
-            (key >> self.id_bits) as u64,
-            (key & ((1 << self.id_bits) - 1)) as usize,
-        )
+        let local = key.low_u64() >> 1 & ((1 << self.id_bits) - 1);
+        ((key >> (self.id_bits + 1)).low_u64(), local as usize)
     }
 
+    #[inline(always)]
     fn is_home<K: PairKey>(&self, key: K) -> bool {
-        key.wide() & 1 != 0
+        key.low_u64() & 1 != 0
     }
 
     /// The table key of the block with index `block`.
@@ -578,8 +874,10 @@ impl PairCode {
     }
 }
 
-/// Spheres per task of the pair generation.
-const PAIR_CHUNK: usize = 1 << 12;
+/// Fewest spheres per task of the pair generation.
+const MIN_PAIR_RUN: usize = 1 << 14;
+/// Tasks per thread of the pair generation, for balance.
+const PAIR_RUNS_PER_THREAD: usize = 4;
 
 /// Packs and sorts the (cell, sphere) pairs of the level's spheres `ids`
 /// (`cell_box(id)` is the box of cells a sphere overlaps), numbers the
@@ -591,45 +889,30 @@ fn sorted_cells<K: PairKey>(
     rank: &mut [u32],
     order: &mut Vec<u32>,
 ) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    // Counted first, then written in place: each task fills its own slice.
-    let volume = |(a, b): ([i64; 3], [i64; 3])| {
-        (0..3)
-            .map(|k| (b[k] - a[k] + 1) as usize)
-            .product::<usize>()
-    };
-    let sizes: Vec<usize> = ids
-        .par_chunks(PAIR_CHUNK)
-        .map(|chunk| chunk.iter().map(|&id| volume(cell_box(id))).sum())
-        .collect();
-    let mut keys = vec![K::narrow(0); sizes.iter().sum()];
-    let mut parts = Vec::with_capacity(sizes.len());
-    let mut rest = keys.as_mut_slice();
-    for &size in &sizes {
-        let (part, tail) = rest.split_at_mut(size);
-        parts.push(part);
-        rest = tail;
-    }
-    parts
-        .into_par_iter()
-        .zip(ids.par_chunks(PAIR_CHUNK))
+    // Each task writes the pairs of its run of spheres to a list of its
+    // own, which the sort's first pass reads where it is: one pass over the
+    // spheres, where counting the pairs first to write them in one array
+    // would take two.
+    let run = ids
+        .len()
+        .div_ceil(PAIR_RUNS_PER_THREAD * rayon::current_num_threads())
+        .max(MIN_PAIR_RUN);
+    let runs: Vec<Vec<K>> = ids
+        .par_chunks(run)
         .enumerate()
-        .for_each(|(c, (part, chunk))| {
-            let mut slots = part.iter_mut();
-            for (j, &id) in chunk.iter().enumerate() {
-                let (low, high) = cell_box(id);
-                for x in low[0]..=high[0] {
-                    for y in low[1]..=high[1] {
-                        for z in low[2]..=high[2] {
-                            let cell = [x, y, z];
-                            if let Some(slot) = slots.next() {
-                                *slot = code.pack(cell, c * PAIR_CHUNK + j, cell == low);
-                            }
-                        }
-                    }
-                }
+        .map(|(r, chunk)| {
+            let mut pairs = Vec::with_capacity(2 * chunk.len());
+            for (local, &id) in (r * run..).zip(chunk) {
+                code.push_box(&mut pairs, cell_box(id), local);
             }
-        });
-    K::sort(&mut keys);
+            pairs
+        })
+        .collect();
+    // Written in sphere order: sorted stably by the cell, they are in
+    // (cell, sphere) order.
+    let slices: Vec<&[K]> = runs.iter().map(Vec::as_slice).collect();
+    let keys = sorted_by_bits(&slices, code.id_bits + 1, code.bits() - code.id_bits - 1);
+    drop(runs);
     number_in_cell_order(code, &keys, ids, rank, order);
     compress(code, &keys, ids, rank)
 }
@@ -839,14 +1122,7 @@ mod tests {
     fn reach_histogram(reaches: &[(f64, usize)]) -> Vec<(i32, usize)> {
         let bins: Vec<i32> = reaches
             .iter()
-            .flat_map(|&(reach, count)| {
-                let e = Extent {
-                    center: DVec3::ZERO,
-                    reach,
-                    slack: 0.0,
-                };
-                std::iter::repeat_n(e.bin(), count)
-            })
+            .flat_map(|&(reach, count)| std::iter::repeat_n(bin_of(reach), count))
             .collect();
         histogram(&bins)
     }
@@ -915,21 +1191,19 @@ mod tests {
     fn occupied_cells_are_estimated_for_small_and_large_levels() {
         // `per_cell` centres in each of `cells` unit cells (at their middles).
         let estimate = |cells: usize, per_cell: usize| {
-            let extents: Vec<Extent> = (0..cells * per_cell)
+            let center: Vec<DVec3> = (0..cells * per_cell)
                 .map(|i| {
                     let c = (i / per_cell) as f64;
-                    Extent {
-                        center: DVec3::new(
-                            c % 97.0,
-                            (c / 97.0).floor() % 89.0,
-                            (c / 8633.0).floor(),
-                        ) + 0.5,
-                        reach: 0.1,
-                        slack: 0.0,
-                    }
+                    DVec3::new(c % 97.0, (c / 97.0).floor() % 89.0, (c / 8633.0).floor()) + 0.5
                 })
                 .collect();
-            let ids: Vec<u32> = (0..extents.len() as u32).collect();
+            let n = center.len();
+            let extents = Extents {
+                center,
+                reach: vec![0.1; n],
+                slack: vec![0.0; n],
+            };
+            let ids: Vec<u32> = (0..n as u32).collect();
             centres_per_occupied_cell(&extents, &ids, 1.0)
         };
         for (cells, per_cell) in [(3, 1), (40, 5), (1_000, 2), (200_000, 1), (300_000, 3)] {
@@ -939,6 +1213,239 @@ mod tests {
                 (e - want).abs() <= 0.05 * want,
                 "{cells} cells × {per_cell}: {e}"
             );
+        }
+    }
+
+    /// A fixed LCG's next 64 bits.
+    fn lcg(seed: u64) -> impl FnMut() -> u64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            state
+        }
+    }
+
+    #[test]
+    fn the_histogram_counts_every_bin_once() {
+        let mut next = lcg(1);
+        // Ranges of bins counted in an array, and one too wide for it.
+        for spread in [1, 40, 17_000, 1 << 20] {
+            let mut bins: Vec<i32> = (0..150_000)
+                .map(|_| (next() >> 33) as i32 % spread - 300)
+                .collect();
+            bins.push(i32::MIN + (spread & 1));
+            let mut want: BTreeMap<i32, usize> = BTreeMap::new();
+            bins.iter().for_each(|&b| *want.entry(b).or_insert(0) += 1);
+            let want: Vec<(i32, usize)> = want.into_iter().rev().collect();
+            assert_eq!(histogram(&bins), want, "spread {spread}");
+            assert_eq!(sparse_histogram(&bins), want, "spread {spread}");
+        }
+        assert!(histogram(&[]).is_empty());
+    }
+
+    #[test]
+    fn class_lists_hold_each_classes_ids_in_order() {
+        let mut next = lcg(2);
+        let bins: Vec<i32> = (0..300_000)
+            .map(|_| (next() >> 58) as i32 * 9 - 80)
+            .collect();
+        let classes = size_classes(&histogram(&bins));
+        assert!(classes.len() > 2, "{classes:?}");
+        let members = members_by_class(&bins, &classes);
+        for (k, ids) in members.iter().enumerate() {
+            let want: Vec<u32> = (0..bins.len() as u32)
+                .filter(|&id| classes.partition_point(|c| c.lowest_bin > bins[id as usize]) == k)
+                .collect();
+            assert_eq!(ids, &want, "class {k}");
+            assert_eq!(ids.len(), classes[k].spheres);
+        }
+    }
+
+    /// Random probe cells in a cube of `side` around 0, few distinct ones
+    /// so that some hold many members; with `far`, every other cell moved
+    /// by a multiple of the wrap on some axis, which must not tell them apart.
+    fn probe_cells(count: usize, side: i64, far: bool, seed: u64) -> Vec<[i64; 3]> {
+        let mut next = lcg(seed);
+        (0..count)
+            .map(|i| {
+                let mut c = [0, 1, 2].map(|_| (next() >> 40) as i64 % side - side / 2);
+                if far && i % 2 == 1 {
+                    c[i % 3] += PROBE_WRAP * ((next() >> 60) as i64 - 7);
+                }
+                c
+            })
+            .collect()
+    }
+
+    #[test]
+    fn crowded_members_are_those_whose_cell_holds_more_than_the_sparse_count() {
+        let cases = [
+            (1, 3, false),
+            (2, 1, false),
+            (5_000, 4, false),
+            (70_000, 30, false),
+        ];
+        let wide = [(70_000, 3_000, false), (20_000, 6, true)];
+        for (count, side, far) in cases.into_iter().chain(wide) {
+            let cells = probe_cells(count, side, far, count as u64 + side as u64);
+            let wrap = |c: &[i64; 3]| c.map(|v| v.rem_euclid(PROBE_WRAP));
+            let mut per_cell: std::collections::HashMap<[i64; 3], u32> = Default::default();
+            cells
+                .iter()
+                .for_each(|c| *per_cell.entry(wrap(c)).or_insert(0) += 1);
+            let want: Vec<bool> = cells
+                .iter()
+                .map(|c| per_cell[&wrap(c)] > SPARSE_NEIGHBOURS)
+                .collect();
+            let code = ProbeCode::new(&cells);
+            let got = |flags: Vec<AtomicBool>| -> Vec<bool> {
+                flags.into_iter().map(AtomicBool::into_inner).collect()
+            };
+            assert_eq!(code.bits() <= u64::BITS, !far, "{count} in {side}³");
+            if !far {
+                assert_eq!(
+                    got(crowded_members::<u64>(&code, &cells)),
+                    want,
+                    "{count} in {side}³"
+                );
+            }
+            assert_eq!(
+                got(crowded_members::<u128>(&code, &cells)),
+                want,
+                "{count} in {side}³"
+            );
+        }
+    }
+
+    #[test]
+    fn the_density_split_matches_counting_each_probe_cell_directly() {
+        let mut next = lcg(5);
+        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        // A dense clump and a sparse scatter of one size, off the origin
+        // on both sides so that negative probe cells occur.
+        let center: Vec<DVec3> = (0..60_000)
+            .map(|i| {
+                let p = DVec3::new(unit(), unit(), unit());
+                if i % 3 == 0 {
+                    p * 400.0 - 200.0
+                } else {
+                    p * 3.0 - 1.0
+                }
+            })
+            .collect();
+        let n = center.len();
+        let extents = Extents {
+            center,
+            reach: (0..n).map(|i| 0.01 + 1e-6 * (i % 7) as f64).collect(),
+            slack: vec![0.0; n],
+        };
+        let ids: Vec<u32> = (0..n as u32).filter(|i| i % 5 != 0).collect();
+        let parts = split_by_density(&extents, ids.clone());
+        // The same rule, each sphere's probe cell counted by binary search.
+        let probe = (2.0 * extents.max_reach(&ids)).log2().ceil().exp2() * DENSITY_PROBE;
+        let key = |id: u32| {
+            let c = (extents.center[id as usize] / probe)
+                .to_array()
+                .map(|v| floor_to_int(v) as u64 & ((1 << 21) - 1));
+            c[0] | c[1] << 21 | c[2] << 42
+        };
+        let mut keys: Vec<u64> = ids.iter().map(|&id| key(id)).collect();
+        keys.sort_unstable();
+        let count = |k: u64| keys.partition_point(|&x| x <= k) - keys.partition_point(|&x| x < k);
+        let (dense, sparse): (Vec<u32>, Vec<u32>) = ids
+            .iter()
+            .partition(|&&id| count(key(id)) > SPARSE_NEIGHBOURS as usize);
+        assert!(!dense.is_empty() && !sparse.is_empty());
+        assert_eq!(parts, vec![dense, sparse]);
+    }
+
+    #[test]
+    fn stopping_once_settled_picks_the_level_the_full_search_does() {
+        let mut next = lcg(9);
+        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        // Sparse dust, so the search coarsens its cells a few times.
+        let center: Vec<DVec3> = (0..20_000)
+            .map(|_| DVec3::new(unit(), unit(), unit()) * 50.0)
+            .collect();
+        let n = center.len();
+        let extents = Extents {
+            center,
+            reach: vec![0.001; n],
+            slack: vec![0.0; n],
+        };
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let exact = choose_cell(&extents, &ids, |_, _| false);
+        assert!(exact > 0.01, "{exact}");
+        for levels in [
+            vec![],
+            vec![1.0 / 1024.0],
+            vec![0.125, 4.0],
+            vec![exact],
+            vec![exact * 2.0],
+        ] {
+            let joins = |cell: f64| {
+                levels
+                    .iter()
+                    .copied()
+                    .filter(|&l| l <= cell)
+                    .reduce(f64::max)
+            };
+            let settled = |finest: f64, coarsest: f64| {
+                joins(finest).is_some() && joins(finest) == joins(coarsest)
+            };
+            let early = choose_cell(&extents, &ids, settled);
+            assert_eq!(
+                joins(early),
+                joins(exact),
+                "levels {levels:?}: {early} vs {exact}"
+            );
+            if joins(exact).is_none() {
+                assert_eq!(early, exact);
+            }
+        }
+    }
+
+    #[test]
+    fn scaling_by_the_reciprocal_of_a_power_of_two_divides_exactly() {
+        let mut next = lcg(4);
+        for e in (-1022..=1023).step_by(5) {
+            let cell = 2f64.powi(e);
+            for _ in 0..50 {
+                let x = f64::from_bits(next() >> 2) * if next() & 1 == 0 { 1.0 } else { -1.0 };
+                assert_eq!(
+                    (x * reciprocal(cell)).to_bits(),
+                    (x / cell).to_bits(),
+                    "{x} / {cell}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_lattice_finds_the_cells_of_the_floor_and_clamp_rule() {
+        let mut next = lcg(6);
+        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let (origin, cell, dims) = (DVec3::new(-3.0, 0.5, 10.0), 0.25, I64Vec3::new(40, 7, 90));
+        let lattice = Lattice {
+            origin,
+            per_cell: reciprocal(cell),
+            last: dims - 1,
+        };
+        for _ in 0..100_000 {
+            // Inside the lattice and some way beyond it on every side.
+            let center = origin + DVec3::new(unit(), unit(), unit()) * dims.as_dvec3() * cell * 1.4
+                - dims.as_dvec3() * cell * 0.2;
+            let reach = unit() * 0.2;
+            let cell_of = |p: f64, axis: usize| {
+                floor_to_int((p - origin[axis]) / cell).clamp(0, dims[axis] - 1)
+            };
+            let want = (
+                [0, 1, 2].map(|k| cell_of(center[k] - reach, k)),
+                [0, 1, 2].map(|k| cell_of(center[k] + reach, k)),
+            );
+            assert_eq!(lattice.cell_box(center, reach), want, "{center} ± {reach}");
         }
     }
 
