@@ -74,7 +74,7 @@ use rayon::iter::Either;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::ops::{BitOr, Shl, Shr};
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 
 /// The ratio of the largest to the smallest reach a level holds.
 pub const LEVEL_SPAN: f64 = 4.0;
@@ -292,7 +292,6 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
     let by_cell = merge_equal_cells(&extents, parts);
     let mut order: Vec<u32> = short_ids.clone();
     let short = (0..order.len() as u32).collect();
-    let mut rank = vec![u32::MAX; shapes.len()];
     let levels = by_cell
         .into_iter()
         .rev()
@@ -305,7 +304,7 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
                     u32::BITS - (shapes.len() as u32).leading_zeros(),
                 );
             }
-            build_level(&extents, &ids, f64::from_bits(cell), &mut rank, &mut order)
+            build_level(&extents, &ids, f64::from_bits(cell), &mut order)
         })
         .collect();
     let bound = (&extents.reach, &extents.slack)
@@ -680,13 +679,7 @@ fn choose_cell(extents: &Extents, ids: &[u32], settled: impl Fn(f64, f64) -> boo
 
 /// Builds one level over `ids`, appending them to `order` as described in
 /// [`number_in_cell_order`].
-fn build_level(
-    extents: &Extents,
-    ids: &[u32],
-    mut cell: f64,
-    rank: &mut [u32],
-    order: &mut Vec<u32>,
-) -> Level {
+fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u32>) -> Level {
     let (lo, hi, slack) = ids
         .par_iter()
         .map(|&id| {
@@ -714,9 +707,9 @@ fn build_level(
         lattice.cell_box(extents.center[id], extents.reach[id])
     };
     let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
-        sorted_cells::<u64>(&code, ids, cell_box, rank, order)
+        sorted_cells::<u64>(&code, ids, cell_box, order)
     } else {
-        sorted_cells::<u128>(&code, ids, cell_box, rank, order)
+        sorted_cells::<u128>(&code, ids, cell_box, order)
     };
     let regions = regions(&blocks);
     Level {
@@ -886,7 +879,6 @@ fn sorted_cells<K: PairKey>(
     code: &PairCode,
     ids: &[u32],
     cell_box: impl Fn(u32) -> ([i64; 3], [i64; 3]) + Sync,
-    rank: &mut [u32],
     order: &mut Vec<u32>,
 ) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
     // Each task writes the pairs of its run of spheres to a list of its
@@ -913,28 +905,28 @@ fn sorted_cells<K: PairKey>(
     let slices: Vec<&[K]> = runs.iter().map(Vec::as_slice).collect();
     let keys = sorted_by_bits(&slices, code.id_bits + 1, code.bits() - code.id_bits - 1);
     drop(runs);
-    number_in_cell_order(code, &keys, ids, rank, order);
-    compress(code, &keys, ids, rank)
+    let rank = number_in_cell_order(code, &keys, ids, order);
+    compress(code, &keys, &rank)
 }
 
 /// Sorted pairs per task of the numbering and the compression.
 const SORTED_CHUNK: usize = 1 << 16;
 
 /// Numbers the spheres of the sorted pairs `keys` in the order they first
-/// appear (`rank[id]`, counting on from `order.len()`), and appends them to
-/// `order` so. A sphere first appears in its home pair, the cell its box's
-/// low corner is in, so a cell's own spheres get consecutive numbers and
-/// neighbouring cells nearby ones: the grid's copies of the spheres a ray
-/// tests in one cell, and in the next, share cache lines instead of lying
-/// anywhere in the array. Home pairs are marked, so the numbering is a count
-/// of them: in parallel, each task numbering its own from its offset.
+/// appear, counting on from `order.len()`, appends them to `order` so, and
+/// returns each one's number by its position in `ids`. A sphere first
+/// appears in its home pair, the cell its box's low corner is in, so a
+/// cell's own spheres get consecutive numbers and neighbouring cells nearby
+/// ones: the grid's copies of the spheres a ray tests in one cell, and in
+/// the next, share cache lines instead of lying anywhere in the array. Home
+/// pairs are marked, so the numbering is a count of them: in parallel, each
+/// task numbering its own from its offset.
 fn number_in_cell_order<K: PairKey>(
     code: &PairCode,
     keys: &[K],
     ids: &[u32],
-    rank: &mut [u32],
     order: &mut Vec<u32>,
-) {
+) -> Vec<AtomicU32> {
     let homes: Vec<usize> = keys
         .par_chunks(SORTED_CHUNK)
         .map(|chunk| chunk.iter().filter(|&&k| code.is_home(k)).count())
@@ -950,24 +942,21 @@ fn number_in_cell_order<K: PairKey>(
         rest = tail;
         first += count;
     }
-    // Each sphere has exactly one home pair, so the tasks write distinct ranks.
-    let ranks: Vec<Vec<(u32, u32)>> = parts
+    // Each sphere has exactly one home pair, so the tasks write distinct
+    // numbers (and no task reads one before all are written).
+    let rank: Vec<AtomicU32> = ids.iter().map(|_| AtomicU32::new(u32::MAX)).collect();
+    parts
         .into_par_iter()
         .zip(keys.par_chunks(SORTED_CHUNK))
-        .map(|((first, part), chunk)| {
+        .for_each(|((first, part), chunk)| {
             let homes = chunk.iter().filter(|&&k| code.is_home(k));
-            let mut numbered = Vec::with_capacity(part.len());
             for ((slot, &key), n) in part.iter_mut().zip(homes).zip(first..) {
-                let id = ids[code.unpack(key).1];
-                *slot = id;
-                numbered.push((id, n as u32));
+                let local = code.unpack(key).1;
+                *slot = ids[local];
+                rank[local].store(n as u32, Relaxed);
             }
-            numbered
-        })
-        .collect();
-    for (id, n) in ranks.into_iter().flatten() {
-        rank[id as usize] = n;
-    }
+        });
+    rank
 }
 
 /// A run of sorted pairs compressed: the occupied cells that start in it,
@@ -980,18 +969,18 @@ struct CompressedRun {
 }
 
 /// From the sorted pairs `keys` to the blocks, the CSR offsets of the
-/// occupied cells, and the flat array of the spheres' numbers (`rank`).
+/// occupied cells, and the flat array of the spheres' numbers (`rank`, by
+/// position in the level's id list).
 /// Runs of pairs are compressed in parallel, then joined.
 fn compress<K: PairKey>(
     code: &PairCode,
     keys: &[K],
-    ids: &[u32],
-    rank: &[u32],
+    rank: &[AtomicU32],
 ) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
     let cell_of = |i: usize| code.unpack(keys[i]).0;
     let numbers: Vec<u32> = keys
         .par_iter()
-        .map(|&k| rank[ids[code.unpack(k).1] as usize])
+        .map(|&k| rank[code.unpack(k).1].load(Relaxed))
         .collect();
     let runs: Vec<CompressedRun> = (0..keys.len().div_ceil(SORTED_CHUNK))
         .into_par_iter()
@@ -1457,10 +1446,13 @@ mod tests {
         let ids: Vec<u32> = (0..boxes.len() as u32).map(|i| 3 * i + 1).collect();
         let spheres = *ids.last().unwrap() as usize + 1;
         let code = PairCode::new(dims, ids.len());
-        let (mut rank, mut order) = (vec![u32::MAX; spheres], vec![7]);
+        let mut order = vec![7];
         let cell_box = |id: u32| boxes[(id as usize - 1) / 3];
-        let (blocks, cell_start, numbers) =
-            sorted_cells::<u64>(&code, &ids, cell_box, &mut rank, &mut order);
+        let (blocks, cell_start, numbers) = sorted_cells::<u64>(&code, &ids, cell_box, &mut order);
+        let mut rank = vec![u32::MAX; spheres];
+        for (n, &id) in order.iter().enumerate().skip(1) {
+            rank[id as usize] = n as u32;
+        }
 
         // The same, one pair at a time.
         let mut pairs = Vec::new();
