@@ -902,9 +902,7 @@ fn sorted_cells<K: PairKey>(
         .collect();
     // Written in sphere order: sorted stably by the cell, they are in
     // (cell, sphere) order.
-    let slices: Vec<&[K]> = runs.iter().map(Vec::as_slice).collect();
-    let keys = sorted_by_bits(&slices, code.id_bits + 1, code.bits() - code.id_bits - 1);
-    drop(runs);
+    let keys = sorted_by_bits(runs, code.id_bits + 1, code.bits() - code.id_bits - 1);
     let rank = number_in_cell_order(code, &keys, ids, order);
     compress(code, &keys, &rank)
 }

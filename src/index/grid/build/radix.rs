@@ -55,33 +55,55 @@ pub fn sort_by_bits<K: RadixKey>(keys: &mut Vec<K>, low: u32, bits: u32) {
         return;
     }
     let runs: Vec<&[K]> = keys.chunks(run_len(keys.len())).collect();
-    *keys = sorted_by_bits(&runs, low, bits);
+    let first = first_pass(&runs, low, bits);
+    // Freed before the later passes take their scratch array.
+    *keys = Vec::new();
+    *keys = later_passes(first, low, bits);
 }
 
 /// The keys of `runs`, one after another, sorted as [`sort_by_bits`] does.
 /// The first pass reads the runs where they are (one task each), so keys
-/// made in parallel need not be gathered into one array first. Passes are
-/// of equal width, and a later pass whose digit is the same for every key
-/// is skipped.
-pub fn sorted_by_bits<K: RadixKey>(runs: &[&[K]], low: u32, bits: u32) -> Vec<K> {
+/// made in parallel need not be gathered into one array first; they are
+/// freed after it, so that no more than two arrays of keys are held at once.
+pub fn sorted_by_bits<K: RadixKey>(runs: Vec<Vec<K>>, low: u32, bits: u32) -> Vec<K> {
+    let slices: Vec<&[K]> = runs.iter().map(Vec::as_slice).collect();
+    let first = first_pass(&slices, low, bits);
+    drop(slices);
+    drop(runs);
+    later_passes(first, low, bits)
+}
+
+/// Bits of each pass's digit: passes of equal width, as few as
+/// [`MAX_DIGIT_BITS`] allows.
+fn digit_width(bits: u32) -> u32 {
+    bits.div_ceil(bits.div_ceil(MAX_DIGIT_BITS).max(1))
+}
+
+/// The keys of `runs` in one new array, ordered by their first digit
+/// (a digit of no bits makes this a plain concatenation).
+fn first_pass<K: RadixKey>(runs: &[&[K]], low: u32, bits: u32) -> Vec<K> {
     assert!(
         low + bits <= K::BITS,
         "bits {low}..{} of a {}-bit key",
         low + bits,
         K::BITS
     );
-    let total = runs.iter().map(|run| run.len()).sum();
-    let width = bits.div_ceil(bits.div_ceil(MAX_DIGIT_BITS).max(1));
-    // A first digit of no bits is a plain concatenation.
-    let mut keys = vec![K::default(); total];
-    scatter(runs, &mut keys, low, width);
+    let mut keys = vec![K::default(); runs.iter().map(|run| run.len()).sum()];
+    scatter(runs, &mut keys, low, digit_width(bits));
+    keys
+}
+
+/// The passes after the first; one whose digit is the same for every key
+/// is skipped.
+fn later_passes<K: RadixKey>(mut keys: Vec<K>, low: u32, bits: u32) -> Vec<K> {
+    let width = digit_width(bits);
     let mut scratch: Vec<K> = Vec::new();
     let mut shift = low + width;
     while shift < low + bits {
         let digit_bits = width.min(low + bits - shift);
-        let runs: Vec<&[K]> = keys.chunks(run_len(total)).collect();
+        let runs: Vec<&[K]> = keys.chunks(run_len(keys.len())).collect();
         if !single_digit(&runs, shift, digit_bits) {
-            scratch.resize(total, K::default());
+            scratch.resize(keys.len(), K::default());
             scatter(&runs, &mut scratch, shift, digit_bits);
             std::mem::swap(&mut keys, &mut scratch);
         }
@@ -221,11 +243,14 @@ mod tests {
         let keys: Vec<u64> = (0..100_000).map(|_| next() >> 20).collect();
         // Runs of uneven lengths, some empty.
         let cuts = [0, 0, 17, 40_000, 40_001, 99_000, 100_000, 100_000];
-        let runs: Vec<&[u64]> = cuts.windows(2).map(|w| &keys[w[0]..w[1]]).collect();
+        let runs: Vec<Vec<u64>> = cuts.windows(2).map(|w| keys[w[0]..w[1]].to_vec()).collect();
         for (low, bits) in [(0, 0), (4, 9), (10, 30)] {
-            assert_eq!(sorted_by_bits(&runs, low, bits), expected(&keys, low, bits));
+            assert_eq!(
+                sorted_by_bits(runs.clone(), low, bits),
+                expected(&keys, low, bits)
+            );
         }
-        assert!(sorted_by_bits::<u64>(&[], 0, 10).is_empty());
+        assert!(sorted_by_bits::<u64>(Vec::new(), 0, 10).is_empty());
     }
 
     #[test]
