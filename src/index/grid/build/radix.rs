@@ -143,20 +143,7 @@ fn scatter<K: RadixKey>(runs: &[&[K]], out: &mut [K], shift: u32, digit_bits: u3
         .par_iter()
         .map(|run| digit_counts(run, shift, digit_bits))
         .collect();
-    // Run r's keys of digit d go after every key of a smaller digit and
-    // after the keys of digit d of the runs before r.
-    let mut slices: Vec<Vec<&mut [K]>> = counts
-        .iter()
-        .map(|_| Vec::with_capacity(mask + 1))
-        .collect();
-    let mut rest = out;
-    for d in 0..=mask {
-        for (run_slices, run_counts) in slices.iter_mut().zip(&counts) {
-            let (slice, tail) = std::mem::take(&mut rest).split_at_mut(run_counts[d]);
-            run_slices.push(slice);
-            rest = tail;
-        }
-    }
+    let slices = digit_slices(out, &counts, mask + 1);
     runs.par_iter().zip(slices).for_each(|(run, mut slices)| {
         for &k in run.iter() {
             let slice = &mut slices[k.digit(shift, mask)];
@@ -169,19 +156,30 @@ fn scatter<K: RadixKey>(runs: &[&[K]], out: &mut [K], shift: u32, digit_bits: u3
     });
 }
 
+/// `out` cut into one slice per (run, digit), by run then digit: run r's
+/// keys of digit d go after every key of a smaller digit and after the
+/// keys of digit d of the runs before r.
+fn digit_slices<'a, K>(
+    mut out: &'a mut [K],
+    counts: &[Vec<usize>],
+    digits: usize,
+) -> Vec<Vec<&'a mut [K]>> {
+    let mut slices: Vec<Vec<&mut [K]>> =
+        counts.iter().map(|_| Vec::with_capacity(digits)).collect();
+    for d in 0..digits {
+        for (run_slices, run_counts) in slices.iter_mut().zip(counts) {
+            let (slice, tail) = std::mem::take(&mut out).split_at_mut(run_counts[d]);
+            run_slices.push(slice);
+            out = tail;
+        }
+    }
+    slices
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn lcg(seed: u64) -> impl FnMut() -> u64 {
-        let mut state = seed;
-        move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            state
-        }
-    }
+    use crate::index::grid::build::lcg;
 
     /// What [`sort_by_bits`] must give: a stable sort by the masked bits.
     fn expected<K: RadixKey + Ord>(keys: &[K], low: u32, bits: u32) -> Vec<K> {
