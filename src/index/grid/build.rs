@@ -2,15 +2,15 @@
 //!
 //! # Which level a sphere goes to
 //! A sphere's reach is its bounding radius ρ (largest scale) plus a pad that
-//! covers the rounding of the hit test (below). The levels come from the
-//! scene's own histogram of reaches ([`size_classes`]), in bins of an eighth
-//! of an octave:
+//! covers the rounding of the hit test ([`extent`]). The levels come from
+//! the scene's own histogram of reaches ([`classes`]), in bins of an
+//! eighth of an octave:
 //! - from the largest reach down, a level takes every sphere within a factor
-//!   [`LEVEL_SPAN`] = 4 of its largest, so a narrow range of sizes is always
-//!   one level, wherever it falls on the number line;
-//! - a finer class with fewer than [`MERGE_FRACTION`] of the spheres of the
-//!   next coarser one joins it: a few small spheres in coarse cells cost
-//!   less than a walk through a grid of their own;
+//!   [`LEVEL_SPAN`] = 4 of its largest, so a narrow range of sizes is
+//!   always one level, wherever it falls on the number line;
+//! - a finer class with fewer than [`MERGE_FRACTION`] of the spheres of
+//!   the next coarser one joins it: a few small spheres in coarse cells
+//!   cost less than a walk through a grid of their own;
 //! - the coarsest classes, while together they hold at most [`SHORT_LIST`]
 //!   spheres (a floor of radius 1000 among spheres of 0.01, a planet), are
 //!   no grid at all: every ray tests them first, and their hits bound the
@@ -18,10 +18,10 @@
 //!
 //! Each level gets a cell side: the smallest power of two at least its
 //! largest diameter, doubled while its sphere centres still number at most
-//! [`MAX_CENTRES_PER_CELL`] per occupied cell (estimated by linear counting;
-//! the doublings are bisected, as that mean only grows with them). A finer
-//! class whose side comes out no finer than a coarser level's joins the
-//! nearest such level. So:
+//! [`MAX_CENTRES_PER_CELL`] per occupied cell (estimated by linear
+//! counting; the doublings are bisected, as that mean only grows with
+//! them; see [`cell`]). A finer class whose side comes out no finer than a
+//! coarser level's joins the nearest such level. So:
 //! - every sphere of a level overlaps at most 2 cells per axis (≤ 8 cells);
 //! - in a dense level a cell is at most 2× the largest and 8× the smallest
 //!   diameter it holds; in a sparse one a cell holds about one sphere, so a
@@ -39,154 +39,47 @@
 //! bounding box of its own spheres, and is coarsened when that box would
 //! need more than 2²¹ cells on a side.
 //!
-//! # Why the pad
-//! The grid must return what brute force returns, and brute force reports what
-//! the rounded hit test says, which may be a grazing "hit" a tiny bit outside
-//! the true surface. In the unit-sphere frame the test works on `f = (o − C)/S`,
-//! whose rounding error is about `u·|f|` (u = unit roundoff of the precision
-//! the test runs in); a false hit therefore lies within `c·u·|f|·s_max` of the
-//! surface. The test runs in `R` only while `|f| ≤ √NEAR_FRAME` and in f64
-//! beyond (see `geometry::ellipsoid`), so `u·|f|` is at most
-//! `u_R·√NEAR_FRAME` (5·10⁻⁴ in f32), or `u_64·|f|` with `|f| ≤ 2M/s_min`: every
-//! ray the renderer traces starts inside the scene's bounding box (or at the
-//! eye at the origin), M the largest coordinate magnitude of the scene. So a
-//! sphere's pad is a small fraction of its own radius, whatever else the
-//! scene holds: one huge sphere no longer widens every small one. Near
-//! tangency the same error reaches the chord under a square root: the
-//! returned t may precede the true entry by `ρ·√(c·u·|f|)` along the ray;
-//! that is the level's `slack`, which delays stopping instead of enlarging
-//! cells. [`ERROR_SAFETY`] is the `c`, chosen with a wide margin over the ~4
-//! the operation count gives; the property tests check the bound.
+//! # Where each step lives
+//! - [`extent`]: each sphere's reach and slack (the pad, and why);
+//! - [`classes`]: the histogram of reaches and the size classes;
+//! - [`density`]: a class split into its crowded and its sparse spheres;
+//! - [`cell`]: each level's cell side, and parts that join a level;
+//! - [`lattice`]: a level's cells, and finding those a sphere overlaps;
+//! - [`pairs`]: the (cell, sphere) pairs, packed and sorted by [`radix`];
+//! - [`compress`]: the sorted pairs numbered and compressed into tables.
+//!
+//! [`LEVEL_SPAN`]: classes::LEVEL_SPAN
+//! [`MERGE_FRACTION`]: classes::MERGE_FRACTION
+//! [`MAX_CENTRES_PER_CELL`]: cell::MAX_CENTRES_PER_CELL
+
+mod cell;
+mod classes;
+mod compress;
+mod density;
+mod extent;
+mod lattice;
+mod pairs;
+mod radix;
 
 use super::occupancy::Occupancy;
-use super::table::{
-    block_key, cell_bit, regions, Block, BlockKey, BlockTable, RegionTable, BLOCK_SHIFT,
-    BLOCK_SIDE, MAX_BLOCKS_PER_AXIS,
-};
-use super::walk::floor_to_int;
+use super::table::{regions, BlockTable, RegionTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS};
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
+use cell::merge_equal_cells;
+use classes::{bin_of, histogram, members_by_class, size_classes};
+use density::split_by_density;
+use extent::Extents;
 use glam::DVec3;
+use lattice::{reciprocal, Lattice};
+use pairs::{sorted_cells, PairCode};
+use radix::sort_by_bits;
 use rayon::prelude::*;
-use std::collections::BTreeMap;
-use voracious_radix_sort::RadixSort;
 
-/// The ratio of the largest to the smallest reach a level holds.
-pub const LEVEL_SPAN: f64 = 4.0;
-/// Histogram bins per octave of reach.
-const BINS_PER_OCTAVE: f64 = 8.0;
-/// A finer size class with fewer than this fraction of the next coarser
-/// class's spheres joins that class.
-pub const MERGE_FRACTION: f64 = 1.0 / 8.0;
 /// Most spheres the coarsest classes may hold together to be tested by
 /// every ray instead of being walked.
 pub const SHORT_LIST: usize = 8;
-/// How many unit roundoffs of the hit test the pad and slack allow for.
-pub const ERROR_SAFETY: f64 = 64.0;
-/// Relative error of the f64 traversal itself, far below any `R`'s.
-const TRAVERSAL_ROUNDOFF: f64 = 1.0 / (1u64 << 40) as f64;
 /// Most cells per level side.
 const MAX_CELLS_PER_AXIS: f64 = (MAX_BLOCKS_PER_AXIS << BLOCK_SHIFT) as f64 - 2.0;
-
-/// What the build needs to know about one sphere, in f64.
-#[derive(Clone, Copy, Debug)]
-struct Extent {
-    center: DVec3,
-    /// Bounding radius plus the pad.
-    reach: f64,
-    /// How far along a ray a rounded hit may precede the true one.
-    slack: f64,
-}
-
-impl Extent {
-    fn of<R: Real>(shape: &Ellipsoid<R>, m: f64) -> Extent {
-        let center = shape.center.to_dvec3();
-        let scale = shape.scale.to_dvec3().abs();
-        let (rho, thinnest) = (scale.max_element(), scale.min_element());
-        // |f| for any origin in the scene, and the two precisions the test
-        // may run in: `R` up to √NEAR_FRAME, f64 beyond (see the module docs).
-        let far = 2.0 * m / thinnest;
-        let near_frame = R::NEAR_FRAME.to_f64().sqrt();
-        let in_r = ERROR_SAFETY * R::UNIT_ROUNDOFF.to_f64() * far.min(near_frame);
-        let in_f64 = ERROR_SAFETY * (f64::EPSILON / 2.0) * far;
-        let error = in_r.max(in_f64);
-        let pad = error * rho + TRAVERSAL_ROUNDOFF * m;
-        let chord = rho * error.sqrt();
-        Extent {
-            center,
-            reach: rho + pad,
-            slack: chord + pad,
-        }
-    }
-
-    /// The histogram bin of the reach.
-    fn bin(&self) -> i32 {
-        (self.reach.log2() * BINS_PER_OCTAVE).floor() as i32
-    }
-}
-
-/// How many times a sparse level's cells may double beyond the sphere size.
-const MAX_COARSENING: i32 = 16;
-/// A level's cells double while the mean number of sphere centres per
-/// occupied cell stays at most this.
-const MAX_CENTRES_PER_CELL: f64 = 2.0;
-/// Bits of the bitmap that estimates how many cells the centres occupy, per
-/// centre (rounded up to a power of two) and at the least and most.
-const OCCUPANCY_BITS_PER_CENTRE: usize = 4;
-const MIN_OCCUPANCY_BITS: usize = 1 << 12;
-const MAX_OCCUPANCY_BITS: usize = 1 << 22;
-
-/// The mean number of sphere centres per occupied cell of side `cell`.
-///
-/// The occupied cells are counted by linear counting (Whang et al. 1990):
-/// hash every centre's cell into a bitmap of m bits; with z bits left clear,
-/// `m·ln(m/z)` estimates the number of distinct cells, within a few percent
-/// while they number less than a few times m. The bitmap holds four bits
-/// per centre (a power of two, 512 B to 512 KiB), so the cells, never more
-/// than the centres, stay well under m up to 2²⁰ centres, and a small scene
-/// neither zeroes nor keeps a large bitmap.
-fn centres_per_occupied_cell(extents: &[Extent], ids: &[u32], cell: f64) -> f64 {
-    let bitmap_bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
-        .next_power_of_two()
-        .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
-    let (words, shift) = (bitmap_bits / 64, 64 - bitmap_bits.trailing_zeros());
-    // One bitmap per thread's share, not per small chunk: a bitmap may be 512 KiB.
-    let share = ids
-        .len()
-        .div_ceil(2 * rayon::current_num_threads())
-        .max(1 << 16);
-    let bitmap = ids
-        .par_chunks(share)
-        .map(|chunk| {
-            let mut bits = vec![0u64; words];
-            for &id in chunk {
-                let c = (extents[id as usize].center / cell)
-                    .to_array()
-                    .map(floor_to_int);
-                let key = (c[0] as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
-                    ^ (c[1] as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
-                    ^ (c[2] as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
-                let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> shift;
-                bits[h as usize / 64] |= 1 << (h % 64);
-            }
-            bits
-        })
-        .reduce(
-            || vec![0u64; words],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
-                a
-            },
-        );
-    let clear = bitmap
-        .iter()
-        .map(|w| w.count_zeros() as f64)
-        .sum::<f64>()
-        .max(1.0);
-    let m = bitmap_bits as f64;
-    let occupied = m * (m / clear).ln();
-    ids.len() as f64 / occupied.max(1.0)
-}
 
 /// What the build hands the grid.
 pub struct Built {
@@ -218,43 +111,34 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
             bound: Vec::new(),
         };
     }
-    let extents: Vec<Extent> = shapes.par_iter().map(|s| Extent::of(s, m)).collect();
-    let bins: Vec<i32> = extents.par_iter().map(Extent::bin).collect();
+    let extents = Extents::of(shapes, m);
+    let bins: Vec<i32> = extents.reach.par_iter().map(|&r| bin_of(r)).collect();
     let classes = size_classes(&histogram(&bins));
-    let class_of = |bin: i32| classes.partition_point(|c| c.lowest_bin > bin);
-    let mut members: Vec<Vec<u32>> = vec![Vec::new(); classes.len()];
-    for (k, ids) in members.iter_mut().enumerate() {
-        *ids = (0..shapes.len() as u32)
-            .into_par_iter()
-            .filter(|&id| class_of(bins[id as usize]) == k)
-            .collect();
-    }
-    // The coarsest classes, while small together, are the short list.
-    let mut short_ids = Vec::new();
-    let mut first_level = 0;
-    while first_level < members.len() && short_ids.len() + members[first_level].len() <= SHORT_LIST
-    {
-        short_ids.append(&mut members[first_level]);
-        first_level += 1;
-    }
+    let mut members = members_by_class(&bins, &classes);
+    let short_ids = short_list(&mut members);
     let parts = members
         .into_iter()
-        .skip(first_level)
+        .filter(|ids| !ids.is_empty())
         .flat_map(|ids| split_by_density(&extents, ids));
     let by_cell = merge_equal_cells(&extents, parts);
-    let mut order: Vec<u32> = short_ids.clone();
+    let mut order: Vec<u32> = short_ids;
     let short = (0..order.len() as u32).collect();
-    let mut rank = vec![u32::MAX; shapes.len()];
+    let id_bits = u32::BITS - (shapes.len() as u32).leading_zeros();
     let levels = by_cell
         .into_iter()
         .rev()
         .map(|(cell, mut ids)| {
-            // Classes that share a level arrive one after another, each in id order.
-            ids.par_sort_unstable();
-            build_level(&extents, &ids, f64::from_bits(cell), &mut rank, &mut order)
+            // Parts that share a level arrive one after another, each in id order.
+            if !ids.is_sorted() {
+                sort_by_bits(&mut ids, 0, id_bits);
+            }
+            build_level(&extents, &ids, f64::from_bits(cell), &mut order)
         })
         .collect();
-    let bound = extents.par_iter().map(|e| e.reach + e.slack).collect();
+    let bound = (&extents.reach, &extents.slack)
+        .into_par_iter()
+        .map(|(reach, slack)| reach + slack)
+        .collect();
     Built {
         levels,
         short,
@@ -263,193 +147,27 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
     }
 }
 
-/// How many spheres fall in each histogram bin, largest bin first.
-fn histogram(bins: &[i32]) -> Vec<(i32, usize)> {
-    let counts = bins
-        .par_iter()
-        .fold(BTreeMap::new, |mut counts, &b| {
-            *counts.entry(b).or_insert(0usize) += 1;
-            counts
-        })
-        .reduce(BTreeMap::new, |mut a, b| {
-            for (bin, n) in b {
-                *a.entry(bin).or_insert(0) += n;
-            }
-            a
-        });
-    counts.into_iter().rev().collect()
-}
-
-/// A run of histogram bins that becomes one level (or the short list).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct SizeClass {
-    /// The smallest bin it holds; it holds every bin from there up to the
-    /// next coarser class's lowest bin.
-    lowest_bin: i32,
-    spheres: usize,
-}
-
-/// The size classes of a histogram (largest bin first), coarsest first: see
-/// the module docs.
-fn size_classes(histogram: &[(i32, usize)]) -> Vec<SizeClass> {
-    let span = (LEVEL_SPAN.log2() * BINS_PER_OCTAVE) as i32;
-    let mut classes: Vec<SizeClass> = Vec::new();
-    let mut top = i32::MAX;
-    for &(bin, count) in histogram {
-        match classes.last_mut() {
-            Some(class) if bin > top - span => {
-                class.lowest_bin = bin;
-                class.spheres += count;
-            }
-            _ => {
-                top = bin;
-                classes.push(SizeClass {
-                    lowest_bin: bin,
-                    spheres: count,
-                });
-            }
+/// The coarsest classes, while together they hold at most [`SHORT_LIST`]
+/// spheres, taken out of `members` (left empty there) in one id list.
+fn short_list(members: &mut [Vec<u32>]) -> Vec<u32> {
+    let mut short = Vec::new();
+    for ids in members {
+        if short.len() + ids.len() > SHORT_LIST {
+            break;
         }
+        short.append(ids);
     }
-    // Small finer classes join the coarser class above them.
-    let mut merged: Vec<SizeClass> = Vec::new();
-    for class in classes {
-        match merged.last_mut() {
-            Some(coarser) if (class.spheres as f64) < MERGE_FRACTION * coarser.spheres as f64 => {
-                coarser.lowest_bin = class.lowest_bin;
-                coarser.spheres += class.spheres;
-            }
-            _ => merged.push(class),
-        }
-    }
-    merged
-}
-
-/// Parts (coarsest first) whose chosen cells come out no finer than a
-/// level already made join the nearest such level, its cell chosen again
-/// for them together: the smaller spheres fit its cells, which are no
-/// coarser than they would have had alone, and one walk costs less than
-/// two. Keyed by the cell's bits, coarsest last.
-fn merge_equal_cells(
-    extents: &[Extent],
-    parts: impl Iterator<Item = Vec<u32>>,
-) -> BTreeMap<u64, Vec<u32>> {
-    let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
-    for ids in parts {
-        let mut cell = choose_cell(extents, &ids);
-        if let Some((&bits, _)) = by_cell.range(..=cell.to_bits()).next_back() {
-            cell = f64::from_bits(bits);
-        }
-        let mut ids = ids;
-        // A merged level's cell may come out finer, onto another level's.
-        while let Some(mut other) = by_cell.remove(&cell.to_bits()) {
-            other.append(&mut ids);
-            ids = other;
-            let again = choose_cell(extents, &ids);
-            if again == cell {
-                break;
-            }
-            cell = again;
-        }
-        by_cell.insert(cell.to_bits(), ids);
-    }
-    by_cell
-}
-
-/// Cells of this many of a class's finest a side decide which of its
-/// spheres are crowded (see [`split_by_density`]).
-const DENSITY_PROBE: f64 = 8.0;
-/// A sphere whose probe cell holds at most this many centres is sparse.
-const SPARSE_NEIGHBOURS: u32 = 2;
-/// The smaller part of a split must hold at least this share of the class.
-const MIN_SPLIT_SHARE: f64 = 1.0 / 64.0;
-
-/// A size class split into its spheres in crowded places and the rest: dense
-/// clumps want the finest cells, while the same sizes scattered as dust
-/// through empty space want cells about their spacing, or a ray pays a
-/// step for every small empty cell between two grains of dust. A sphere is
-/// sparse when the cell of [`DENSITY_PROBE`] finest cells a side that holds
-/// its centre holds at most [`SPARSE_NEIGHBOURS`] centres.
-fn split_by_density(extents: &[Extent], ids: Vec<u32>) -> Vec<Vec<u32>> {
-    let reach = ids
-        .par_iter()
-        .map(|&id| extents[id as usize].reach)
-        .reduce(|| 0.0, f64::max);
-    let probe = (2.0 * reach).log2().ceil().exp2() * DENSITY_PROBE;
-    let key = |id: u32| {
-        let c = (extents[id as usize].center / probe)
-            .to_array()
-            .map(|v| floor_to_int(v) as u64 & ((1 << 21) - 1));
-        c[0] | c[1] << 21 | c[2] << 42
-    };
-    let mut keys: Vec<u64> = ids.par_iter().map(|&id| key(id)).collect();
-    keys.voracious_mt_sort(rayon::current_num_threads());
-    let crowded = |id: u32| {
-        let k = key(id);
-        let count = keys.partition_point(|&x| x <= k) - keys.partition_point(|&x| x < k);
-        count > SPARSE_NEIGHBOURS as usize
-    };
-    let (dense, sparse): (Vec<u32>, Vec<u32>) = ids.par_iter().partition(|&&id| crowded(id));
-    let smaller = dense.len().min(sparse.len()) as f64;
-    if smaller < MIN_SPLIT_SHARE * ids.len() as f64 {
-        return vec![ids];
-    }
-    vec![dense, sparse]
-}
-
-/// The cell side of a level: the smallest power of two at least its largest
-/// diameter, doubled while cells stay sparse.
-fn choose_cell(extents: &[Extent], ids: &[u32]) -> f64 {
-    let reach = ids
-        .par_iter()
-        .map(|&id| extents[id as usize].reach)
-        .reduce(|| 0.0, f64::max);
-    let finest = (2.0 * reach).log2().ceil().exp2();
-    // Sparse levels: coarser cells while a cell still holds few centres, so
-    // that rays cross fewer empty cells on their way to a sphere. Doubling
-    // the cells merges them eight to one, so the centres per occupied cell
-    // only grow with the doublings: search for the most that stay sparse
-    // (a few passes over the level instead of one per doubling).
-    let sparse = |doublings: i32| {
-        let cell = finest * f64::from(doublings).exp2();
-        centres_per_occupied_cell(extents, ids, cell) <= MAX_CENTRES_PER_CELL
-    };
-    // Galloping up from the finest cells first: a dense level, where most
-    // spheres usually are, is settled by one pass.
-    let (mut good, mut bad) = (0, MAX_COARSENING + 1);
-    let mut probe = 1;
-    while probe < bad {
-        if sparse(probe) {
-            good = probe;
-            probe *= 2;
-        } else {
-            bad = probe;
-        }
-    }
-    while bad - good > 1 {
-        let mid = (good + bad) / 2;
-        if sparse(mid) {
-            good = mid;
-        } else {
-            bad = mid;
-        }
-    }
-    finest * f64::from(good).exp2()
+    short
 }
 
 /// Builds one level over `ids`, appending them to `order` as described in
-/// [`number_in_cell_order`].
-fn build_level(
-    extents: &[Extent],
-    ids: &[u32],
-    mut cell: f64,
-    rank: &mut [u32],
-    order: &mut Vec<u32>,
-) -> Level {
+/// [`compress::number_in_cell_order`].
+fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u32>) -> Level {
     let (lo, hi, slack) = ids
         .par_iter()
         .map(|&id| {
-            let e = &extents[id as usize];
-            (e.center - e.reach, e.center + e.reach, e.slack)
+            let (center, reach) = (extents.center[id as usize], extents.reach[id as usize]);
+            (center - reach, center + reach, extents.slack[id as usize])
         })
         .reduce(
             || (DVec3::INFINITY, DVec3::NEG_INFINITY, 0.0),
@@ -461,21 +179,20 @@ fn build_level(
     // The lattice is anchored at a multiple of the cell side.
     let lo = (lo / cell).floor() * cell;
     let dims = ((hi - lo) / cell).floor().as_i64vec3() + 1;
-    let cell_of = |p: f64, axis: usize| -> i64 {
-        floor_to_int((p - lo[axis]) / cell).clamp(0, dims[axis] - 1)
+    let lattice = Lattice {
+        origin: lo,
+        per_cell: reciprocal(cell),
+        last: dims - 1,
     };
     let code = PairCode::new(dims.to_array(), ids.len());
-    // The cells a sphere overlaps: a box of them, low and high corner.
     let cell_box = |id: u32| {
-        let e = &extents[id as usize];
-        let a = [0, 1, 2].map(|k| cell_of(e.center[k] - e.reach, k));
-        let b = [0, 1, 2].map(|k| cell_of(e.center[k] + e.reach, k));
-        (a, b)
+        let id = id as usize;
+        lattice.cell_box(extents.center[id], extents.reach[id])
     };
     let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
-        sorted_cells::<u64>(&code, ids, cell_box, rank, order)
+        sorted_cells::<u64>(&code, ids, cell_box, order)
     } else {
-        sorted_cells::<u128>(&code, ids, cell_box, rank, order)
+        sorted_cells::<u128>(&code, ids, cell_box, order)
     };
     let regions = regions(&blocks);
     Level {
@@ -496,405 +213,21 @@ fn build_level(
     }
 }
 
-/// (cell, sphere) pairs packed into integers that sort by block, then by
-/// cell within the block (the order a block's mask ranks its cells in), then
-/// by sphere id: the block's index in the level's box, the cell's bit, the
-/// sphere's position in the level's ascending id list, and a last bit set on
-/// the sphere's home pair (the cell of its box's low corner, which sorts
-/// before its other cells). One integer (a u64 whenever they fit) sorts far
-/// faster than a tuple.
-struct PairCode {
-    /// Blocks per axis.
-    blocks: [u64; 3],
-    id_bits: u32,
-}
-
-/// The integers [`PairCode`] packs into.
-trait PairKey: Copy + Ord + Send + Sync {
-    fn narrow(wide: u128) -> Self;
-    fn wide(self) -> u128;
-    /// Sorts `keys` ascending on the current rayon pool.
-    fn sort(keys: &mut [Self]);
-}
-
-impl PairKey for u64 {
-    fn sort(keys: &mut [Self]) {
-        keys.voracious_mt_sort(rayon::current_num_threads());
+#[cfg(test)]
+/// A fixed LCG's next 64 bits.
+fn lcg(seed: u64) -> impl FnMut() -> u64 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        state
     }
-    fn narrow(wide: u128) -> Self {
-        wide as u64
-    }
-    fn wide(self) -> u128 {
-        u128::from(self)
-    }
-}
-
-impl PairKey for u128 {
-    fn sort(keys: &mut [Self]) {
-        keys.voracious_mt_sort(rayon::current_num_threads());
-    }
-    fn narrow(wide: u128) -> Self {
-        wide
-    }
-    fn wide(self) -> u128 {
-        self
-    }
-}
-
-impl PairCode {
-    fn new(dims: [i64; 3], spheres: usize) -> Self {
-        PairCode {
-            blocks: dims.map(|d| ((d + BLOCK_SIDE - 1) >> BLOCK_SHIFT) as u64),
-            id_bits: usize::BITS - spheres.leading_zeros(),
-        }
-    }
-
-    /// Bits a packed pair needs.
-    fn bits(&self) -> u32 {
-        let blocks = self.blocks.iter().product::<u64>();
-        u64::BITS - blocks.leading_zeros() + 3 * BLOCK_SHIFT + self.id_bits + 1
-    }
-
-    fn pack<K: PairKey>(&self, c: [i64; 3], local: usize, home: bool) -> K {
-        let b = c.map(|v| (v >> BLOCK_SHIFT) as u64);
-        let block = (b[2] * self.blocks[1] + b[1]) * self.blocks[0] + b[0];
-        let cell = u128::from(block) << (3 * BLOCK_SHIFT) | u128::from(cell_bit(c));
-        K::narrow((cell << self.id_bits | local as u128) << 1 | u128::from(home))
-    }
-
-    /// The packed cell (block index and cell bit) and the sphere's position.
-    fn unpack<K: PairKey>(&self, key: K) -> (u64, usize) {
-        let key = key.wide() >> 1;
-        (
-            (key >> self.id_bits) as u64,
-            (key & ((1 << self.id_bits) - 1)) as usize,
-        )
-    }
-
-    fn is_home<K: PairKey>(&self, key: K) -> bool {
-        key.wide() & 1 != 0
-    }
-
-    /// The table key of the block with index `block`.
-    fn block_key(&self, block: u64) -> BlockKey {
-        let [nx, ny, _] = self.blocks;
-        block_key([block % nx, block / nx % ny, block / (nx * ny)].map(|b| b as i64))
-    }
-}
-
-/// Spheres per task of the pair generation.
-const PAIR_CHUNK: usize = 1 << 12;
-
-/// Packs and sorts the (cell, sphere) pairs of the level's spheres `ids`
-/// (`cell_box(id)` is the box of cells a sphere overlaps), numbers the
-/// spheres in cell order, and compresses the pairs into blocks and CSR lists.
-fn sorted_cells<K: PairKey>(
-    code: &PairCode,
-    ids: &[u32],
-    cell_box: impl Fn(u32) -> ([i64; 3], [i64; 3]) + Sync,
-    rank: &mut [u32],
-    order: &mut Vec<u32>,
-) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    // Counted first, then written in place: each task fills its own slice.
-    let volume = |(a, b): ([i64; 3], [i64; 3])| {
-        (0..3)
-            .map(|k| (b[k] - a[k] + 1) as usize)
-            .product::<usize>()
-    };
-    let sizes: Vec<usize> = ids
-        .par_chunks(PAIR_CHUNK)
-        .map(|chunk| chunk.iter().map(|&id| volume(cell_box(id))).sum())
-        .collect();
-    let mut keys = vec![K::narrow(0); sizes.iter().sum()];
-    let mut parts = Vec::with_capacity(sizes.len());
-    let mut rest = keys.as_mut_slice();
-    for &size in &sizes {
-        let (part, tail) = rest.split_at_mut(size);
-        parts.push(part);
-        rest = tail;
-    }
-    parts
-        .into_par_iter()
-        .zip(ids.par_chunks(PAIR_CHUNK))
-        .enumerate()
-        .for_each(|(c, (part, chunk))| {
-            let mut slots = part.iter_mut();
-            for (j, &id) in chunk.iter().enumerate() {
-                let (low, high) = cell_box(id);
-                for x in low[0]..=high[0] {
-                    for y in low[1]..=high[1] {
-                        for z in low[2]..=high[2] {
-                            let cell = [x, y, z];
-                            if let Some(slot) = slots.next() {
-                                *slot = code.pack(cell, c * PAIR_CHUNK + j, cell == low);
-                            }
-                        }
-                    }
-                }
-            }
-        });
-    K::sort(&mut keys);
-    number_in_cell_order(code, &keys, ids, rank, order);
-    compress(code, &keys, ids, rank)
-}
-
-/// Sorted pairs per task of the numbering and the compression.
-const SORTED_CHUNK: usize = 1 << 16;
-
-/// Numbers the spheres of the sorted pairs `keys` in the order they first
-/// appear (`rank[id]`, counting on from `order.len()`), and appends them to
-/// `order` so. A sphere first appears in its home pair, the cell its box's
-/// low corner is in, so a cell's own spheres get consecutive numbers and
-/// neighbouring cells nearby ones: the grid's copies of the spheres a ray
-/// tests in one cell, and in the next, share cache lines instead of lying
-/// anywhere in the array. Home pairs are marked, so the numbering is a count
-/// of them: in parallel, each task numbering its own from its offset.
-fn number_in_cell_order<K: PairKey>(
-    code: &PairCode,
-    keys: &[K],
-    ids: &[u32],
-    rank: &mut [u32],
-    order: &mut Vec<u32>,
-) {
-    let homes: Vec<usize> = keys
-        .par_chunks(SORTED_CHUNK)
-        .map(|chunk| chunk.iter().filter(|&&k| code.is_home(k)).count())
-        .collect();
-    let start = order.len();
-    order.resize(start + homes.iter().sum::<usize>(), u32::MAX);
-    let mut parts = Vec::with_capacity(homes.len());
-    let mut rest = &mut order[start..];
-    let mut first = start;
-    for &count in &homes {
-        let (part, tail) = rest.split_at_mut(count);
-        parts.push((first, part));
-        rest = tail;
-        first += count;
-    }
-    // Each sphere has exactly one home pair, so the tasks write distinct ranks.
-    let ranks: Vec<Vec<(u32, u32)>> = parts
-        .into_par_iter()
-        .zip(keys.par_chunks(SORTED_CHUNK))
-        .map(|((first, part), chunk)| {
-            let homes = chunk.iter().filter(|&&k| code.is_home(k));
-            let mut numbered = Vec::with_capacity(part.len());
-            for ((slot, &key), n) in part.iter_mut().zip(homes).zip(first..) {
-                let id = ids[code.unpack(key).1];
-                *slot = id;
-                numbered.push((id, n as u32));
-            }
-            numbered
-        })
-        .collect();
-    for (id, n) in ranks.into_iter().flatten() {
-        rank[id as usize] = n;
-    }
-}
-
-/// A run of sorted pairs compressed: the occupied cells that start in it,
-/// the blocks that start in it, and the cells at its head that belong to
-/// a block started before it.
-struct CompressedRun {
-    cell_start: Vec<u32>,
-    blocks: Vec<(u64, Block)>,
-    carried: u64,
-}
-
-/// From the sorted pairs `keys` to the blocks, the CSR offsets of the
-/// occupied cells, and the flat array of the spheres' numbers (`rank`).
-/// Runs of pairs are compressed in parallel, then joined.
-fn compress<K: PairKey>(
-    code: &PairCode,
-    keys: &[K],
-    ids: &[u32],
-    rank: &[u32],
-) -> (Vec<(BlockKey, Block)>, Vec<u32>, Vec<u32>) {
-    let cell_of = |i: usize| code.unpack(keys[i]).0;
-    let numbers: Vec<u32> = keys
-        .par_iter()
-        .map(|&k| rank[ids[code.unpack(k).1] as usize])
-        .collect();
-    let runs: Vec<CompressedRun> = (0..keys.len().div_ceil(SORTED_CHUNK))
-        .into_par_iter()
-        .map(|r| {
-            let mut run = CompressedRun {
-                cell_start: Vec::new(),
-                blocks: Vec::new(),
-                carried: 0,
-            };
-            let mut previous = if r == 0 {
-                u64::MAX
-            } else {
-                cell_of(r * SORTED_CHUNK - 1)
-            };
-            for i in r * SORTED_CHUNK..((r + 1) * SORTED_CHUNK).min(keys.len()) {
-                let cell = cell_of(i);
-                if cell == previous {
-                    continue;
-                }
-                let (block, bit) = (cell >> (3 * BLOCK_SHIFT), cell & 63);
-                if previous == u64::MAX || block != previous >> (3 * BLOCK_SHIFT) {
-                    let first_cell = run.cell_start.len() as u32;
-                    run.blocks.push((
-                        block,
-                        Block {
-                            occupied: 0,
-                            first_cell,
-                        },
-                    ));
-                }
-                match run.blocks.last_mut() {
-                    Some((_, b)) => b.occupied |= 1 << bit,
-                    None => run.carried |= 1 << bit,
-                }
-                run.cell_start.push(i as u32);
-                previous = cell;
-            }
-            run
-        })
-        .collect();
-    let mut blocks: Vec<(BlockKey, Block)> = Vec::new();
-    let mut cell_start: Vec<u32> = Vec::new();
-    for run in runs {
-        if let Some((_, b)) = blocks.last_mut() {
-            b.occupied |= run.carried;
-        }
-        let offset = cell_start.len() as u32;
-        blocks.extend(run.blocks.into_iter().map(|(block, b)| {
-            let first_cell = b.first_cell + offset;
-            (code.block_key(block), Block { first_cell, ..b })
-        }));
-        cell_start.extend(run.cell_start);
-    }
-    cell_start.push(keys.len() as u32);
-    (blocks, cell_start, numbers)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Boxes of 1–2 cells per axis in a 40×30×20 lattice, by a fixed LCG.
-    fn boxes(count: usize) -> Vec<([i64; 3], [i64; 3])> {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = |n: i64| {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1);
-            (state >> 33) as i64 % n
-        };
-        (0..count)
-            .map(|_| {
-                let low = [next(39), next(29), next(19)];
-                let high = low.map(|c| c + next(2));
-                (low, high)
-            })
-            .collect()
-    }
-
-    /// The pad's claim, tested directly: whenever the f32 test reports a
-    /// hit, the ray's line truly passes within the sphere's reach (radius
-    /// plus pad) of its centre. Rays graze spheres at 10⁻⁸..10⁻² radii
-    /// outside the rim, from 1 to 10⁶ radii away, at scales 10⁻⁴..10⁴, so
-    /// both the f32 and the f64 branch of the test are exercised.
-    #[test]
-    fn every_reported_hit_lies_within_the_reach() {
-        use crate::geometry::Ray;
-        use glam::Vec3;
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut unit = || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let (mut hits, mut outside) = (0, 0);
-        for _ in 0..200_000 {
-            let scale = 10f64.powf(unit() * 8.0 - 4.0);
-            let r = scale * (0.5 + unit());
-            let center = DVec3::new(unit(), unit(), unit()) * 100.0 * scale;
-            let shape = Ellipsoid::<f32>::new(center.as_vec3(), Vec3::splat(r as f32));
-            let d = DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize();
-            let side = d.any_orthonormal_vector();
-            let miss = 1.0 + 10f64.powf(-2.0 - 6.0 * unit());
-            let back = r * 10f64.powf(6.0 * unit());
-            let origin = center + side * (r * miss) - d * back;
-            let ray = Ray::new(origin.as_vec3(), d.as_vec3());
-            if shape.intersect(&ray, 0.0, f32::INFINITY).is_none() {
-                continue;
-            }
-            hits += 1;
-            // The true distance of the f32 ray's line from the f32 centre, in f64.
-            let (o, dir, c) = (
-                ray.origin.as_dvec3(),
-                ray.dir.as_dvec3(),
-                shape.center.as_dvec3(),
-            );
-            let distance = (c - o).cross(dir).length() / dir.length();
-            let m = (o.abs().max(c.abs()) + r).max_element();
-            if distance > Extent::of(&shape, m).reach {
-                outside += 1;
-            }
-        }
-        assert!(hits > 10_000, "{hits} hits");
-        assert_eq!(outside, 0, "of {hits} hits");
-    }
-
-    fn reach_histogram(reaches: &[(f64, usize)]) -> Vec<(i32, usize)> {
-        let bins: Vec<i32> = reaches
-            .iter()
-            .flat_map(|&(reach, count)| {
-                let e = Extent {
-                    center: DVec3::ZERO,
-                    reach,
-                    slack: 0.0,
-                };
-                std::iter::repeat_n(e.bin(), count)
-            })
-            .collect();
-        histogram(&bins)
-    }
-
-    #[test]
-    fn a_narrow_range_of_sizes_is_one_class_wherever_it_falls() {
-        for centre in [0.03, 0.0625, 0.25, 1.0, 1000.0] {
-            // ±20% around a size, and around a power of four, in 40 steps.
-            let reaches: Vec<(f64, usize)> = (0..=40)
-                .map(|k| (centre * (0.8 + 0.01 * k as f64), 1000))
-                .collect();
-            let classes = size_classes(&reach_histogram(&reaches));
-            assert_eq!(classes.len(), 1, "around {centre}: {classes:?}");
-            assert_eq!(classes[0].spheres, 41_000);
-        }
-    }
-
-    #[test]
-    fn sizes_over_three_decades_make_a_few_classes_each_within_the_span() {
-        let reaches: Vec<(f64, usize)> = (0..=300)
-            .map(|k| (1e-3 * 10f64.powf(k as f64 / 100.0), 100))
-            .collect();
-        let classes = size_classes(&reach_histogram(&reaches));
-        assert!((5..=6).contains(&classes.len()), "{classes:?}");
-        // Each spans a factor 4 at most, but for the last, which the few
-        // spheres of the smallest bin join.
-        let span = (LEVEL_SPAN.log2() * BINS_PER_OCTAVE) as i32;
-        let mut top = 0;
-        for (k, class) in classes.iter().enumerate() {
-            let slack = if k + 1 == classes.len() { 2 } else { 0 };
-            assert!(top - class.lowest_bin < span + slack, "{classes:?}");
-            top = class.lowest_bin - 1;
-        }
-    }
-
-    #[test]
-    fn a_few_small_spheres_join_the_coarser_class() {
-        // 2% dust a hundred times smaller than the rest.
-        let classes = size_classes(&reach_histogram(&[(0.1, 9800), (0.001, 200)]));
-        assert_eq!(classes.len(), 1, "{classes:?}");
-        // But as many small as large ones get their own level.
-        let classes = size_classes(&reach_histogram(&[(0.1, 5000), (0.001, 5000)]));
-        assert_eq!(classes.len(), 2, "{classes:?}");
-    }
 
     #[test]
     fn a_huge_floor_is_the_short_list_and_leaves_the_small_spheres_alone() {
@@ -913,104 +246,5 @@ mod tests {
         assert_eq!(built.levels.len(), 1);
         // The floor's size did not widen the small spheres' cells.
         assert!(built.levels[0].cell <= 0.125, "{}", built.levels[0].cell);
-    }
-
-    #[test]
-    fn occupied_cells_are_estimated_for_small_and_large_levels() {
-        // `per_cell` centres in each of `cells` unit cells (at their middles).
-        let estimate = |cells: usize, per_cell: usize| {
-            let extents: Vec<Extent> = (0..cells * per_cell)
-                .map(|i| {
-                    let c = (i / per_cell) as f64;
-                    Extent {
-                        center: DVec3::new(
-                            c % 97.0,
-                            (c / 97.0).floor() % 89.0,
-                            (c / 8633.0).floor(),
-                        ) + 0.5,
-                        reach: 0.1,
-                        slack: 0.0,
-                    }
-                })
-                .collect();
-            let ids: Vec<u32> = (0..extents.len() as u32).collect();
-            centres_per_occupied_cell(&extents, &ids, 1.0)
-        };
-        for (cells, per_cell) in [(3, 1), (40, 5), (1_000, 2), (200_000, 1), (300_000, 3)] {
-            let e = estimate(cells, per_cell);
-            let want = per_cell as f64;
-            assert!(
-                (e - want).abs() <= 0.05 * want,
-                "{cells} cells × {per_cell}: {e}"
-            );
-        }
-    }
-
-    #[test]
-    fn parallel_numbering_and_compression_match_a_serial_pass() {
-        // Enough pairs for several runs of SORTED_CHUNK, blocks straddling them.
-        let boxes = boxes(60_000);
-        let dims = [40, 30, 20];
-        let ids: Vec<u32> = (0..boxes.len() as u32).map(|i| 3 * i + 1).collect();
-        let spheres = *ids.last().unwrap() as usize + 1;
-        let code = PairCode::new(dims, ids.len());
-        let (mut rank, mut order) = (vec![u32::MAX; spheres], vec![7]);
-        let cell_box = |id: u32| boxes[(id as usize - 1) / 3];
-        let (blocks, cell_start, numbers) =
-            sorted_cells::<u64>(&code, &ids, cell_box, &mut rank, &mut order);
-
-        // The same, one pair at a time.
-        let mut pairs = Vec::new();
-        for (local, &(low, high)) in boxes.iter().enumerate() {
-            for x in low[0]..=high[0] {
-                for y in low[1]..=high[1] {
-                    for z in low[2]..=high[2] {
-                        let b = [x, y, z].map(|v| (v >> BLOCK_SHIFT) as u64);
-                        let block = (b[2] * code.blocks[1] + b[1]) * code.blocks[0] + b[0];
-                        pairs.push((block, cell_bit([x, y, z]), local));
-                    }
-                }
-            }
-        }
-        assert!(pairs.len() > 3 * SORTED_CHUNK);
-        pairs.sort_unstable();
-        let (mut want_rank, mut want_order) = (vec![u32::MAX; spheres], vec![7]);
-        for &(_, _, local) in &pairs {
-            let id = ids[local] as usize;
-            if want_rank[id] == u32::MAX {
-                want_rank[id] = want_order.len() as u32;
-                want_order.push(id as u32);
-            }
-        }
-        let mut want_blocks: Vec<(BlockKey, Block)> = Vec::new();
-        let mut want_starts = Vec::new();
-        for (i, &(block, bit, _)) in pairs.iter().enumerate() {
-            if i > 0 && pairs[i - 1].0 == block && pairs[i - 1].1 == bit {
-                continue;
-            }
-            if i == 0 || pairs[i - 1].0 != block {
-                let first_cell = want_starts.len() as u32;
-                want_blocks.push((
-                    code.block_key(block),
-                    Block {
-                        occupied: 0,
-                        first_cell,
-                    },
-                ));
-            }
-            want_blocks.last_mut().unwrap().1.occupied |= 1 << bit;
-            want_starts.push(i as u32);
-        }
-        want_starts.push(pairs.len() as u32);
-        let want_numbers: Vec<u32> = pairs
-            .iter()
-            .map(|&(_, _, local)| want_rank[ids[local] as usize])
-            .collect();
-
-        assert_eq!(order, want_order);
-        assert_eq!(rank, want_rank);
-        assert_eq!(cell_start, want_starts);
-        assert_eq!(blocks, want_blocks);
-        assert_eq!(numbers, want_numbers);
     }
 }
