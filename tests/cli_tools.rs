@@ -134,3 +134,48 @@ fn every_command_refuses_zero_threads_alike() {
         );
     }
 }
+
+/// `load` and `serve` exit with 2 when their arguments are at fault and
+/// with 1 when the machine is, each with its reason.
+#[test]
+fn load_and_serve_exit_codes_say_whose_fault_it_is() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let taken = taken.local_addr().unwrap().to_string();
+    let missing = scratch("no-such-scene.txt");
+    let missing = missing.to_str().unwrap();
+    for (args, code, says) in [
+        (
+            vec!["load", "--url", "https://x/"],
+            2,
+            "only http:// URLs are supported",
+        ),
+        (vec!["load", "--duration", "5y"], 2, "the unit must be ms"),
+        (
+            vec!["load", "--concurrency", "0"],
+            2,
+            "--concurrency must be at least 1",
+        ),
+        (
+            vec!["load", "--in-process", "-n", "1"],
+            2,
+            "--in-process needs --scene",
+        ),
+        (vec!["load", "--scene", missing], 1, "cannot read"),
+        (
+            vec!["serve", "--max-connections", "0"],
+            2,
+            "--max-connections must be at least 1",
+        ),
+        (
+            vec!["serve", "--addr", "nowhere"],
+            2,
+            "cannot resolve nowhere",
+        ),
+        (vec!["serve", "--addr", &taken], 1, "cannot listen on"),
+    ] {
+        let out = voxtrace(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {stderr}");
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+    }
+}

@@ -33,26 +33,20 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
             for (name, distribution, spheres) in builtin_names() {
                 eprintln!("bench: {name}");
                 let text = builtin_scene(distribution, spheres);
-                let result = bench_text(&name, &text, !args.no_baselines)
-                    .map_err(|e| CliError::Failed(e.to_string()))?;
+                let result =
+                    bench_text(&name, &text, !args.no_baselines).map_err(CliError::Bench)?;
                 results.push(result);
             }
         } else {
             for path in &args.scene {
                 eprintln!("bench: {}", path.display());
-                results.push(bench_file(path, !args.no_baselines).map_err(|e| match e {
-                    crate::tools::bench::BenchError::Scene(path, error) => {
-                        CliError::Scene { path, error }
-                    }
-                    other => CliError::Failed(other.to_string()),
-                })?);
+                results.push(bench_file(path, !args.no_baselines).map_err(CliError::Bench)?);
             }
         }
         Ok(())
     })?;
     if args.json {
-        let json =
-            serde_json::to_string_pretty(&results).map_err(|e| CliError::Failed(e.to_string()))?;
+        let json = serde_json::to_string_pretty(&results).map_err(CliError::Json)?;
         println!("{json}");
     } else {
         println!("threads: {}\n", pool.current_num_threads());

@@ -74,7 +74,10 @@ pub fn run(args: GenArgs) -> Result<(), CliError> {
         glass: fraction("glass", args.glass)?,
     };
     let display = args.output.display().to_string();
-    let failed = |e: std::io::Error| CliError::Failed(format!("cannot write {display}: {e}"));
+    let failed = |error| CliError::Write {
+        what: display.clone(),
+        error,
+    };
     if display == "-" {
         let mut out = BufWriter::new(std::io::stdout().lock());
         generate(&options, &mut out)

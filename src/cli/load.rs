@@ -39,17 +39,17 @@ pub struct LoadArgs {
 }
 
 pub fn run(args: LoadArgs) -> Result<(), CliError> {
-    let url = Url::parse(&args.url).map_err(CliError::Usage)?;
+    let url = Url::parse(&args.url).map_err(CliError::Url)?;
     let body = match &args.scene {
-        Some(path) => Some(
-            std::fs::read(path)
-                .map_err(|e| CliError::Failed(format!("cannot read {}: {e}", path.display())))?,
-        ),
+        Some(path) => Some(std::fs::read(path).map_err(|error| CliError::Read {
+            what: path.display().to_string(),
+            error,
+        })?),
         None => None,
     };
     let until = match (args.requests, &args.duration) {
         (Some(n), _) => Until::Requests(n),
-        (None, Some(d)) => Until::Elapsed(load::parse_duration(d).map_err(CliError::Usage)?),
+        (None, Some(d)) => Until::Elapsed(load::parse_duration(d).map_err(CliError::Duration)?),
         (None, None) => Until::Elapsed(Duration::from_secs(10)),
     };
     let config = LoadConfig {
@@ -58,11 +58,11 @@ pub fn run(args: LoadArgs) -> Result<(), CliError> {
         concurrency: args.concurrency,
         until,
         rate: args.rate,
-        timeout: load::parse_duration(&args.timeout).map_err(CliError::Usage)?,
+        timeout: load::parse_duration(&args.timeout).map_err(CliError::Duration)?,
         in_process: args.in_process,
         progress: !args.json,
     };
-    let report = load::run(&config).map_err(CliError::Usage)?;
+    let report = load::run(&config).map_err(CliError::Load)?;
     let text = if args.json {
         report.to_json(&config).to_string()
     } else {
@@ -82,9 +82,10 @@ pub fn run(args: LoadArgs) -> Result<(), CliError> {
     };
     match writeln!(std::io::stdout().lock(), "{text}") {
         // A closed pipe (`| head`) is the reader's choice, not a failure.
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
-            Err(CliError::Failed(format!("cannot write the report: {e}")))
-        }
+        Err(error) if error.kind() != std::io::ErrorKind::BrokenPipe => Err(CliError::Write {
+            what: "the report".into(),
+            error,
+        }),
         _ => Ok(()),
     }
 }

@@ -44,28 +44,71 @@ enum Command {
     Report(report::ReportArgs),
 }
 
-/// Why a command failed; decides the exit code.
+/// Why a command failed. Every failure of every command is one of these,
+/// and [`CliError::exit_code`] alone decides the process's exit code.
 #[derive(Debug)]
 pub enum CliError {
-    /// The scene text is invalid (exit code 2).
+    /// The scene text is invalid.
     Scene {
         path: String,
         error: crate::scene::SceneError,
     },
-    /// The arguments make no sense together (exit code 2).
+    /// The arguments make no sense together.
     Usage(String),
-    /// The arguments parse, but what they ask is refused (exit code 2).
+    /// The arguments parse, but what they ask is refused.
     Refused(refusal::Refusal),
-    /// Anything else: files, rendering, encoding (exit code 1).
-    Failed(String),
+    /// A file or stream (`what`: its path, or "standard output") could not be read.
+    Read {
+        what: String,
+        error: std::io::Error,
+    },
+    /// A file or stream could not be written.
+    Write {
+        what: String,
+        error: std::io::Error,
+    },
+    Encode(crate::output::EncodeError),
+    Json(serde_json::Error),
+    Pool(crate::threads::PoolError),
+    Render(crate::render::RenderError),
+    Bench(crate::tools::bench::BenchError),
+    Report(crate::tools::report::ReportError),
+    Url(crate::tools::load::UrlError),
+    Duration(crate::tools::load::DurationError),
+    Load(crate::tools::load::LoadError),
+    Serve(crate::service::BindError),
+    /// The service stopped serving.
+    Serving(std::io::Error),
 }
 
 impl CliError {
+    /// 2 when the input is at fault (arguments, scene text, a refusal),
+    /// 1 when the machine, the network or the work itself failed.
     fn exit_code(&self) -> ExitCode {
-        match self {
-            CliError::Scene { .. } | CliError::Usage(_) | CliError::Refused(_) => ExitCode::from(2),
-            CliError::Failed(_) => ExitCode::from(1),
-        }
+        use crate::render::RenderError;
+        use crate::service::BindError;
+        use crate::tools::bench::BenchError;
+        use crate::tools::load::LoadError;
+        let usage = match self {
+            CliError::Scene { .. } | CliError::Usage(_) | CliError::Refused(_) => true,
+            CliError::Url(_) | CliError::Duration(_) => true,
+            CliError::Read { .. } | CliError::Write { .. } | CliError::Serving(_) => false,
+            CliError::Encode(_) | CliError::Json(_) | CliError::Pool(_) => false,
+            CliError::Render(e) => matches!(e, RenderError::BadOption(_)),
+            CliError::Bench(e) => matches!(e, BenchError::Scene(..)),
+            CliError::Report(_) => false,
+            CliError::Load(e) => match e {
+                LoadError::NoConcurrency
+                | LoadError::BadRate
+                | LoadError::InProcessWithoutScene => true,
+                LoadError::Resolve { .. } | LoadError::NoAddress(_) | LoadError::Pool(_) => false,
+            },
+            CliError::Serve(e) => match e {
+                BindError::Config(_) | BindError::Resolve { .. } | BindError::NoAddress(_) => true,
+                BindError::Listen { .. } | BindError::Pool(_) => false,
+            },
+        };
+        ExitCode::from(if usage { 2 } else { 1 })
     }
 }
 
@@ -73,8 +116,21 @@ impl fmt::Display for CliError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             CliError::Scene { path, error } => write!(f, "{path}: {error}"),
-            CliError::Usage(why) | CliError::Failed(why) => write!(f, "{why}"),
+            CliError::Usage(why) => write!(f, "{why}"),
             CliError::Refused(refusal) => write!(f, "{refusal}"),
+            CliError::Read { what, error } => write!(f, "cannot read {what}: {error}"),
+            CliError::Write { what, error } => write!(f, "cannot write {what}: {error}"),
+            CliError::Encode(e) => write!(f, "{e}"),
+            CliError::Json(e) => write!(f, "cannot write JSON: {e}"),
+            CliError::Pool(e) => write!(f, "{e}"),
+            CliError::Render(e) => write!(f, "{e}"),
+            CliError::Bench(e) => write!(f, "{e}"),
+            CliError::Report(e) => write!(f, "{e}"),
+            CliError::Url(e) => write!(f, "{e}"),
+            CliError::Duration(e) => write!(f, "{e}"),
+            CliError::Load(e) => write!(f, "{e}"),
+            CliError::Serve(e) => write!(f, "{e}"),
+            CliError::Serving(e) => write!(f, "the service stopped: {e}"),
         }
     }
 }
@@ -117,5 +173,5 @@ where
 
 /// The pool a command runs in: `--threads` threads, or one per core.
 fn thread_pool(threads: Option<Threads>) -> Result<rayon::ThreadPool, CliError> {
-    crate::threads::pool(threads.unwrap_or_default()).map_err(|e| CliError::Failed(e.to_string()))
+    crate::threads::pool(threads.unwrap_or_default()).map_err(CliError::Pool)
 }

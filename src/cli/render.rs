@@ -88,7 +88,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     let progress = RowProgress::new(scene.camera.height);
     let rendered = pool
         .install(|| render_scene(&scene, &options, &|rows| progress.update(rows)))
-        .map_err(|e| CliError::Usage(e.to_string()))?;
+        .map_err(CliError::Render)?;
     progress.finish();
     write_image(&rendered, &destination)?;
     if args.stats {
@@ -102,10 +102,7 @@ fn write_image(rendered: &Rendered, destination: &Destination) -> Result<(), Cli
         Destination::Stdout => Format::Png,
         Destination::File(path) => Format::from_path(path),
     };
-    let bytes = rendered
-        .image
-        .encode(format)
-        .map_err(|e| CliError::Failed(e.to_string()))?;
+    let bytes = rendered.image.encode(format).map_err(CliError::Encode)?;
     let (result, name) = match destination {
         Destination::Stdout => (
             std::io::stdout().lock().write_all(&bytes),
@@ -113,7 +110,7 @@ fn write_image(rendered: &Rendered, destination: &Destination) -> Result<(), Cli
         ),
         Destination::File(path) => (std::fs::write(path, &bytes), path.display().to_string()),
     };
-    result.map_err(|e| CliError::Failed(format!("cannot write {name}: {e}")))
+    result.map_err(|error| CliError::Write { what: name, error })
 }
 
 fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {

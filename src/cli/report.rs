@@ -57,5 +57,5 @@ pub fn run(args: ReportArgs) -> Result<(), CliError> {
     };
     let pool = super::thread_pool(args.threads)?;
     pool.install(|| report::run(&config))
-        .map_err(|e| CliError::Failed(e.to_string()))
+        .map_err(CliError::Report)
 }

@@ -12,7 +12,10 @@ use std::path::Path;
 /// Reads and parses the scene at `path`, at most `max_bytes` of it.
 pub fn read_scene(path: &Path, max_bytes: u64) -> Result<Scene, CliError> {
     let display = path.display().to_string();
-    let cannot_read = |e: std::io::Error| CliError::Failed(format!("cannot read {display}: {e}"));
+    let cannot_read = |error| CliError::Read {
+        what: display.clone(),
+        error,
+    };
     let file = File::open(path).map_err(cannot_read)?;
     let metadata = file.metadata().map_err(cannot_read)?;
     if metadata.is_file() && metadata.len() > max_bytes {

@@ -93,19 +93,15 @@ impl ServeArgs {
 }
 
 pub fn run(args: ServeArgs) -> Result<(), CliError> {
-    let server = Server::bind(args.config()).map_err(|e| match e.kind() {
-        std::io::ErrorKind::InvalidInput => CliError::Usage(e.to_string()),
-        _ => CliError::Failed(format!("cannot listen on {}: {e}", args.addr)),
-    })?;
-    let addr = server
-        .local_addr()
-        .map_err(|e| CliError::Failed(e.to_string()))?;
+    let server = Server::bind(args.config()).map_err(CliError::Serve)?;
+    let addr = server.local_addr().map_err(CliError::Serving)?;
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "listening on http://{addr}")
         .and_then(|()| stdout.flush())
-        .map_err(|e| CliError::Failed(format!("cannot write to stdout: {e}")))?;
+        .map_err(|error| CliError::Write {
+            what: "standard output".into(),
+            error,
+        })?;
     drop(stdout);
-    server
-        .run()
-        .map_err(|e| CliError::Failed(format!("the service stopped: {e}")))
+    server.run().map_err(CliError::Serving)
 }

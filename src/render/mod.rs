@@ -286,11 +286,11 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
     let mut rgb = vec![0u8; width * height * 3];
     let totals = Mutex::new(BandCounts::default());
     let rows_done = AtomicU32::new(0);
-    rgb.par_chunks_mut(width * 3 * BAND as usize)
+    rgb.par_chunks_mut(width * 3 * BAND_ROWS as usize)
         .enumerate()
         .for_each(|(band, out)| {
             let mut counts = BandCounts::default();
-            let rows = band as u32 * BAND..((band as u32 + 1) * BAND).min(height as u32);
+            let rows = band as u32 * BAND_ROWS..((band as u32 + 1) * BAND_ROWS).min(height as u32);
             render_band(&tracer, &sampler, rows.clone(), out, &mut counts, stop);
             // A poisoned lock only means another band panicked, which
             // propagates anyway; its counts are still sound to add to.
@@ -323,13 +323,16 @@ pub const TILE: u32 = 8;
 /// Side of the quarters of a tile, listed one after another: each quarter's
 /// rays are one group of a packet, with a cone of its own.
 pub const QUARTER: u32 = TILE / 2;
-/// Rows per band, the unit of parallel work, and side of the square blocks
-/// of tiles a band is traced in.
-pub const BAND: u32 = 32;
+/// Rows per band, the unit of parallel work.
+pub const BAND_ROWS: u32 = 32;
+/// Columns per block of tiles, the pixels whose shadow rays are traced
+/// together: a band is traced block by block, so a block is as tall as its
+/// band, and as wide so that a full block is square.
+pub const BLOCK_COLUMNS: u32 = BAND_ROWS;
 
-/// The tiles of the band of rows `rows` (at most [`BAND`] of them) in the
-/// order they are traced, each as its pixels (column, row): tiles row by
-/// row within blocks of [`BAND`]×[`BAND`] pixels, blocks left to right, and
+/// The tiles of the band of rows `rows` (at most [`BAND_ROWS`] of them) in
+/// the order they are traced, each as its pixels (column, row): tiles row by
+/// row within blocks of [`BLOCK_COLUMNS`] columns, blocks left to right, and
 /// a tile's pixels quarter by quarter ([`QUARTER`]×[`QUARTER`], top left,
 /// top right, bottom left, bottom right), row by row within a quarter.
 /// Consecutive packets then stay close on the image, so the cells and
@@ -340,16 +343,17 @@ pub fn tiles(width: u32, rows: std::ops::Range<u32>) -> impl Iterator<Item = Vec
 }
 
 /// The tiles of [`tiles`], block by block: each item is the tiles of one
-/// block of [`BAND`]×[`BAND`] pixels, whose shadow rays are traced together.
+/// block of [`BLOCK_COLUMNS`] columns of the band, whose shadow rays are
+/// traced together.
 pub fn tile_blocks(
     width: u32,
     rows: std::ops::Range<u32>,
 ) -> impl Iterator<Item = Vec<Vec<(u32, u32)>>> {
-    (0..width).step_by(BAND as usize).map(move |x0| {
+    (0..width).step_by(BLOCK_COLUMNS as usize).map(move |x0| {
         rows.clone()
             .step_by(TILE as usize)
             .flat_map(|y0| {
-                (x0..(x0 + BAND).min(width))
+                (x0..(x0 + BLOCK_COLUMNS).min(width))
                     .step_by(TILE as usize)
                     .map(move |t0| tile_pixels(t0, y0, width, rows.end))
             })

@@ -274,6 +274,7 @@ impl Drop for BodyCharge<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::atomic::AtomicUsize;
     use std::time::Duration;
 
     const POLL: Duration = Duration::from_millis(5);
@@ -389,26 +390,49 @@ mod tests {
         assert!(enter(&gate, Instant::now()).is_ok());
     }
 
+    /// Waits until the waiters have asked `gone` `more` times past `since`,
+    /// in all: they woke before their turn and polled.
+    fn polled(polls: &AtomicUsize, since: usize, more: usize) {
+        let patience = Instant::now() + Duration::from_secs(30);
+        while polls.load(Ordering::Relaxed) < since + more {
+            assert!(Instant::now() < patience, "the waiters never polled");
+            std::thread::yield_now();
+        }
+    }
+
     #[test]
     fn slots_go_to_the_waiters_in_the_order_they_came() {
         let gate = Admission::new(1, 8);
         let held = enter(&gate, Instant::now()).unwrap();
         let order = Mutex::new(Vec::new());
+        // Every poll of a waiter that woke before its turn.
+        let polls = AtomicUsize::new(0);
+        let waiters = 6;
         std::thread::scope(|s| {
-            for i in 0..6 {
-                let (gate, order) = (&gate, &order);
+            for i in 0..waiters {
+                let (gate, order, polls) = (&gate, &order, &polls);
                 s.spawn(move || {
-                    let ticket = enter(gate, Instant::now() + Duration::from_secs(10)).unwrap();
+                    let place = gate.reserve().unwrap();
+                    let ticket = place
+                        .enter(Instant::now() + Duration::from_secs(600), POLL, || {
+                            polls.fetch_add(1, Ordering::Relaxed);
+                            false
+                        })
+                        .unwrap();
                     order.lock().unwrap().push(i);
-                    // Hold the slot a moment: those behind wake and poll meanwhile.
-                    std::thread::sleep(POLL);
+                    // Hold the slot until one of those behind has woken and
+                    // polled: waking out of turn must not jump the line.
+                    if i + 1 < waiters {
+                        polled(polls, polls.load(Ordering::Relaxed), 1);
+                    }
                     drop(ticket);
                 });
                 while gate.in_line() <= i {
                     std::thread::yield_now();
                 }
             }
-            std::thread::sleep(3 * POLL);
+            // As many polls as waiters while the first slot is still held.
+            polled(&polls, 0, waiters);
             drop(held);
         });
         assert_eq!(order.into_inner().unwrap(), [0, 1, 2, 3, 4, 5]);

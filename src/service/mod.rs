@@ -18,6 +18,7 @@
 
 mod admission;
 mod assets;
+mod config;
 mod connection;
 mod error;
 mod http;
@@ -28,17 +29,17 @@ mod registry;
 mod render_route;
 mod routes;
 
+pub use config::{BindError, ConfigError, ServiceConfig};
 pub use error::{ApiError, ApiErrorKind};
 pub use render_route::{render_request, EncodedRender};
 
-use crate::limits;
-use crate::threads::{self, Threads};
+use crate::threads;
 use admission::{Admission, BodyBudget};
 use memory_budget::MemoryBudget;
 use metrics::Metrics;
-use registry::{Caps, Over, Quota, Registry};
+use registry::{Over, Quota, Registry};
 use std::io;
-use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
+use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
@@ -52,94 +53,6 @@ const CONNECTION_STACK_BYTES: usize = 256 * 1024;
 /// How long the acceptor spends telling a connection over the cap that the
 /// service is busy, before closing it regardless.
 const TURN_AWAY_WRITE: Duration = Duration::from_millis(100);
-
-/// Everything the service can be told; each field has a default in
-/// [`limits`] and a flag of `voxtrace serve`.
-#[derive(Clone, Debug)]
-pub struct ServiceConfig {
-    pub addr: String,
-    pub max_connections: usize,
-    pub max_connections_per_peer: usize,
-    pub concurrent_renders: usize,
-    pub queue: usize,
-    pub max_body: u64,
-    pub body_memory: u64,
-    /// Everything requests make the service hold, and its resident set.
-    pub memory_budget: u64,
-    pub max_pixels: u64,
-    pub max_samples: u64,
-    pub max_spheres: usize,
-    pub render_timeout: Duration,
-    pub idle_timeout: Duration,
-    pub head_timeout: Duration,
-    pub body_timeout: Duration,
-    pub write_timeout: Duration,
-    /// Render threads.
-    pub threads: Threads,
-}
-
-impl Default for ServiceConfig {
-    fn default() -> Self {
-        let ms = Duration::from_millis;
-        ServiceConfig {
-            addr: limits::DEFAULT_ADDR.to_owned(),
-            max_connections: limits::DEFAULT_MAX_CONNECTIONS,
-            max_connections_per_peer: limits::DEFAULT_MAX_CONNECTIONS_PER_PEER,
-            concurrent_renders: limits::DEFAULT_CONCURRENT_RENDERS,
-            queue: limits::DEFAULT_QUEUE,
-            max_body: limits::DEFAULT_MAX_BODY,
-            body_memory: limits::DEFAULT_BODY_MEMORY,
-            memory_budget: limits::DEFAULT_MEMORY_BUDGET,
-            max_pixels: limits::DEFAULT_MAX_PIXELS,
-            max_samples: limits::DEFAULT_MAX_SAMPLES,
-            max_spheres: limits::DEFAULT_MAX_SERVICE_SPHERES,
-            render_timeout: ms(limits::DEFAULT_RENDER_TIMEOUT_MS),
-            idle_timeout: ms(limits::DEFAULT_IDLE_TIMEOUT_MS),
-            head_timeout: ms(limits::DEFAULT_HEAD_TIMEOUT_MS),
-            body_timeout: ms(limits::DEFAULT_BODY_TIMEOUT_MS),
-            write_timeout: ms(limits::DEFAULT_WRITE_TIMEOUT_MS),
-            threads: Threads::AllCores,
-        }
-    }
-}
-
-impl ServiceConfig {
-    fn timeouts(&self) -> http::Timeouts {
-        http::Timeouts {
-            idle: self.idle_timeout,
-            head: self.head_timeout,
-        }
-    }
-
-    fn caps(&self) -> Caps {
-        Caps {
-            total: self.max_connections,
-            per_peer: self.max_connections_per_peer,
-            reserve: limits::HEALTH_RESERVE_CONNECTIONS,
-        }
-    }
-
-    fn check(&self) -> io::Result<()> {
-        let invalid =
-            |what: &str| Err(io::Error::new(io::ErrorKind::InvalidInput, what.to_owned()));
-        if self.max_connections == 0 {
-            return invalid("--max-connections must be at least 1");
-        }
-        if self.max_connections_per_peer == 0 {
-            return invalid("--max-connections-per-peer must be at least 1");
-        }
-        if self.memory_budget < self.max_body {
-            return invalid("--memory-budget must be at least --max-body");
-        }
-        if self.concurrent_renders == 0 {
-            return invalid("--renders must be at least 1");
-        }
-        if self.body_memory < self.max_body {
-            return invalid("--body-memory must be at least --max-body");
-        }
-        Ok(())
-    }
-}
 
 /// What every connection shares.
 pub(crate) struct State {
@@ -168,27 +81,15 @@ pub struct Server {
 impl Server {
     /// Binds `config.addr` and starts the render pool. Nothing is served
     /// until [`Server::run`] or [`Server::spawn`].
-    pub fn bind(config: ServiceConfig) -> io::Result<Server> {
+    pub fn bind(config: ServiceConfig) -> Result<Server, BindError> {
         config.check()?;
-        let addr = config.addr.to_socket_addrs()?.next().ok_or_else(|| {
-            io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("{} names no address", config.addr),
-            )
-        })?;
-        let listener = TcpListener::bind(addr)?;
-        let pool = threads::pool(config.threads).map_err(io::Error::other)?;
+        let addr = config.socket_addr()?;
+        let listener =
+            TcpListener::bind(addr).map_err(|source| BindError::Listen { addr, source })?;
+        let pool = threads::pool(config.threads).map_err(BindError::Pool)?;
         // Measured once the pool's threads exist: what the service holds idle.
         let baseline = memory_budget::resident_bytes().unwrap_or(0);
-        if config.memory_budget < baseline + config.max_body {
-            return Err(io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!(
-                    "--memory-budget must be at least {} bytes: the service's own {baseline} resident bytes and one --max-body",
-                    baseline + config.max_body
-                ),
-            ));
-        }
+        config.check_memory_budget(baseline)?;
         let memory = MemoryBudget::new(config.memory_budget, baseline);
         let state = State {
             admission: Admission::new(config.concurrent_renders, config.queue),

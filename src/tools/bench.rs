@@ -201,10 +201,10 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
 fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
     let sampler = PixelSampler::new(&scene.camera, 1);
     let (w, h) = (scene.camera.width, scene.camera.height);
-    (0..h.div_ceil(render::BAND))
+    (0..h.div_ceil(render::BAND_ROWS))
         .into_par_iter()
         .flat_map_iter(|band| {
-            let rows = band * render::BAND..((band + 1) * render::BAND).min(h);
+            let rows = band * render::BAND_ROWS..((band + 1) * render::BAND_ROWS).min(h);
             render::tiles(w, rows).flatten()
         })
         .map(|(x, y)| {
@@ -242,8 +242,8 @@ struct ShadowBatch {
 
 /// One ray per light per hit, from the offset hit point to the light (t = 1),
 /// in batches of one block's rays toward one light ([`render::tile_blocks`]:
-/// [`render::BAND`]² consecutive eye rays when the image's sides are
-/// multiples of it).
+/// [`render::BLOCK_COLUMNS`] × [`render::BAND_ROWS`] consecutive eye rays
+/// when the image's sides are multiples of them).
 fn shadow_rays(
     scene: &Scene,
     shapes: &[Ellipsoid<f32>],
@@ -255,7 +255,7 @@ fn shadow_rays(
         .iter()
         .map(|l| V3::<f32>::from_dvec3(l.position))
         .collect();
-    let block = (render::BAND * render::BAND) as usize;
+    let block = (render::BLOCK_COLUMNS * render::BAND_ROWS) as usize;
     eye.par_chunks(block)
         .zip(hits.par_chunks(block))
         .flat_map_iter(|(eye, hits)| {

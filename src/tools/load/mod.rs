@@ -14,6 +14,10 @@
 //! measured against; each request counts with the status the service would
 //! have answered.
 
+mod error;
+
+pub use error::{DurationError, LoadError, UrlError};
+
 use crate::service::{render_request, ServiceConfig};
 use crate::threads::Threads;
 use std::collections::BTreeMap;
@@ -34,16 +38,16 @@ pub struct Url {
 
 impl Url {
     /// Parses `http://host[:port][/path][?query]`.
-    pub fn parse(url: &str) -> Result<Url, String> {
+    pub fn parse(url: &str) -> Result<Url, UrlError> {
         let rest = url
             .strip_prefix("http://")
-            .ok_or_else(|| format!("{url:?}: only http:// URLs are supported"))?;
+            .ok_or_else(|| UrlError::NotHttp(url.to_owned()))?;
         let (authority, target) = match rest.find(['/', '?']) {
             Some(i) => (&rest[..i], &rest[i..]),
             None => (rest, "/"),
         };
         if authority.is_empty() {
-            return Err(format!("{url:?} names no host"));
+            return Err(UrlError::NoHost(url.to_owned()));
         }
         let authority = if authority
             .rsplit_once(':')
@@ -392,30 +396,23 @@ impl Run<'_> {
 }
 
 /// Runs the load and reports what it measured.
-pub fn run(config: &LoadConfig) -> Result<LoadReport, String> {
+pub fn run(config: &LoadConfig) -> Result<LoadReport, LoadError> {
     if config.concurrency == 0 {
-        return Err("--concurrency must be at least 1".into());
+        return Err(LoadError::NoConcurrency);
     }
     if config.rate.is_some_and(|r| !(r > 0.0 && r.is_finite())) {
-        return Err("--rate must be a positive number of requests per second".into());
+        return Err(LoadError::BadRate);
     }
     let mut pool = None;
     let addr = if config.in_process {
         if config.body.is_none() {
-            return Err("--in-process needs --scene".into());
+            return Err(LoadError::InProcessWithoutScene);
         }
         // One per core, as `voxtrace serve` by default.
-        pool = Some(crate::threads::pool(Threads::AllCores).map_err(|e| e.to_string())?);
+        pool = Some(crate::threads::pool(Threads::AllCores).map_err(LoadError::Pool)?);
         None
     } else {
-        let addr = config
-            .url
-            .authority
-            .to_socket_addrs()
-            .map_err(|e| format!("cannot resolve {}: {e}", config.url.authority))?
-            .next()
-            .ok_or_else(|| format!("{} names no address", config.url.authority))?;
-        Some(addr)
+        Some(resolve(&config.url.authority)?)
     };
     let run = Run {
         config,
@@ -448,6 +445,18 @@ pub fn run(config: &LoadConfig) -> Result<LoadReport, String> {
     let mut report = summarize(samples.into_iter().flatten().collect(), window);
     report.unfinished = run.live.unfinished.load(Ordering::Relaxed);
     Ok(report)
+}
+
+/// The first address `authority` (`host:port`) resolves to.
+fn resolve(authority: &str) -> Result<SocketAddr, LoadError> {
+    authority
+        .to_socket_addrs()
+        .map_err(|source| LoadError::Resolve {
+            authority: authority.to_owned(),
+            source,
+        })?
+        .next()
+        .ok_or_else(|| LoadError::NoAddress(authority.to_owned()))
 }
 
 fn request_bytes(config: &LoadConfig) -> Vec<u8> {
@@ -721,7 +730,7 @@ fn show_progress(run: &Run) {
 }
 
 /// Parses `30s`, `500ms`, `2m`, `1h` or a bare number of seconds.
-pub fn parse_duration(text: &str) -> Result<Duration, String> {
+pub fn parse_duration(text: &str) -> Result<Duration, DurationError> {
     let text = text.trim();
     let split = text
         .find(|c: char| c.is_ascii_alphabetic())
@@ -732,14 +741,14 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
         "ms" => 1e-3,
         "m" | "min" => 60.0,
         "h" => 3600.0,
-        _ => return Err(format!("{text:?}: the unit must be ms, s, m or h")),
+        _ => return Err(DurationError::Unit(text.to_owned())),
     };
     number
         .parse::<f64>()
         .ok()
         .filter(|n| n.is_finite() && *n >= 0.0)
         .map(|n| Duration::from_secs_f64(n * seconds))
-        .ok_or_else(|| format!("{text:?} is not a duration like 30s or 500ms"))
+        .ok_or_else(|| DurationError::Number(text.to_owned()))
 }
 
 #[cfg(test)]
@@ -764,8 +773,14 @@ mod tests {
             Url::parse("http://[::1]:9000/healthz").unwrap().authority,
             "[::1]:9000"
         );
-        assert!(Url::parse("https://x/").is_err());
-        assert!(Url::parse("http:///x").is_err());
+        assert_eq!(
+            Url::parse("https://x/"),
+            Err(UrlError::NotHttp("https://x/".into()))
+        );
+        assert_eq!(
+            Url::parse("http:///x"),
+            Err(UrlError::NoHost("http:///x".into()))
+        );
     }
 
     #[test]
@@ -774,8 +789,15 @@ mod tests {
         assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
         assert_eq!(parse_duration("2m"), Ok(Duration::from_secs(120)));
         assert_eq!(parse_duration("1.5"), Ok(Duration::from_millis(1500)));
-        assert!(parse_duration("soon").is_err());
-        assert!(parse_duration("5y").is_err());
+        assert_eq!(
+            parse_duration("soon"),
+            Err(DurationError::Unit("soon".into()))
+        );
+        assert_eq!(parse_duration("5y"), Err(DurationError::Unit("5y".into())));
+        assert_eq!(
+            parse_duration("-2s"),
+            Err(DurationError::Number("-2s".into()))
+        );
     }
 
     #[test]
