@@ -100,36 +100,45 @@ impl Occupancy {
 /// exactly: each pass lowers an entry to one more than its smallest
 /// neighbour among the 13 already visited (forward, then backward). A
 /// shortest chessboard path can be taken monotone in each axis, split into a
-/// part the forward pass propagates and one the backward pass does. Groups
-/// beyond the box are not neighbours, which leaves them empty.
+/// part the forward pass propagates and one the backward pass does. The
+/// passes run over a copy with a border one group thick of 255s (empty,
+/// as everything beyond the box is): every entry of the box then finds its
+/// 13 neighbours at fixed offsets, with no test for the box's edges.
 fn chessboard_distances(distance: &mut [u8], dims: [i64; 3]) {
-    let [nx, ny, nz] = dims;
-    let index = |x: i64, y: i64, z: i64| ((z * ny + y) * nx + x) as usize;
-    let inside = |x: i64, y: i64, z: i64| {
-        (0..nx).contains(&x) && (0..ny).contains(&y) && (0..nz).contains(&z)
-    };
-    for sign in [-1, 1] {
-        // Forward (sign −1: the neighbours visited before are at −offset)
-        // runs x, y, z upwards; backward runs them downwards.
-        let along = |n: i64, i: i64| if sign < 0 { i } else { n - 1 - i };
-        for z in (0..nz).map(|i| along(nz, i)) {
-            for y in (0..ny).map(|i| along(ny, i)) {
-                for x in (0..nx).map(|i| along(nx, i)) {
-                    let here = index(x, y, z);
-                    if distance[here] == 0 {
-                        continue;
-                    }
-                    let mut nearest = distance[here] - 1;
-                    for (dx, dy, dz) in VISITED_BEFORE {
-                        let (x, y, z) = (x + sign * dx, y + sign * dy, z + sign * dz);
-                        if inside(x, y, z) {
-                            nearest = nearest.min(distance[index(x, y, z)]);
-                        }
-                    }
-                    distance[here] = nearest.saturating_add(1);
-                }
-            }
+    let [nx, ny, nz] = dims.map(|n| n as usize);
+    let (px, py) = (nx + 2, ny + 2);
+    let at = |x: usize, y: usize, z: usize| (z * py + y) * px + x;
+    let mut padded = vec![u8::MAX; px * py * (nz + 2)];
+    let rows = |z: usize, y: usize| (at(1, y + 1, z + 1), (z * ny + y) * nx);
+    for (z, y) in (0..nz).flat_map(|z| (0..ny).map(move |y| (z, y))) {
+        let (to, from) = rows(z, y);
+        padded[to..to + nx].copy_from_slice(&distance[from..from + nx]);
+    }
+    let before = VISITED_BEFORE.map(|(dx, dy, dz)| (dz * py as i64 + dy) * px as i64 + dx);
+    let lower = |padded: &mut [u8], i: usize, forward: bool| {
+        if padded[i] != 0 {
+            let nearest = before.iter().fold(padded[i] - 1, |m, &o| {
+                let neighbour = if forward { i as i64 - o } else { i as i64 + o };
+                m.min(padded[neighbour as usize])
+            });
+            padded[i] = nearest.saturating_add(1);
         }
+    };
+    let inside = |z: usize, y: usize| at(1, y + 1, z + 1)..at(nx + 1, y + 1, z + 1);
+    for (z, y) in (0..nz).flat_map(|z| (0..ny).map(move |y| (z, y))) {
+        inside(z, y).for_each(|i| lower(&mut padded, i, true));
+    }
+    for (z, y) in (0..nz)
+        .rev()
+        .flat_map(|z| (0..ny).rev().map(move |y| (z, y)))
+    {
+        inside(z, y)
+            .rev()
+            .for_each(|i| lower(&mut padded, i, false));
+    }
+    for (z, y) in (0..nz).flat_map(|z| (0..ny).map(move |y| (z, y))) {
+        let (from, to) = rows(z, y);
+        distance[to..to + nx].copy_from_slice(&padded[from..from + nx]);
     }
 }
 
