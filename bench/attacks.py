@@ -43,6 +43,10 @@ NESTED_GLASS = scene(*CAMERA, "RES 64 64",
 HOT_CELL = scene(*CAMERA, "RES 8 8",
                  *(f"SPHERE s{i} 0 0 -5 1 1 1 1 0 0 0.2 0.8 0 0 1" for i in range(200_000)),
                  "LIGHT l 0 5 0 1 1 1")
+# As many spheres at one centre as the default body limit (16 MiB) holds.
+HOT_CELL_FULL = scene(*CAMERA, "RES 8 8",
+                      *("SPHERE s 0 0 -5 1 1 1 1 0 0 .2 .8 0 0 1" for _ in range(419_000)),
+                      "LIGHT l 0 5 0 1 1 1")
 MANY_LIGHTS = scene(*CAMERA, "RES 16 4096",
                     "SPHERE big 0 0 -3 4 4 1 1 1 1 0.1 0.8 0.2 0 10",
                     *(f"LIGHT l{i} {i % 10} {i // 100} 0 0.001 0.001 0.001" for i in range(1000)))
@@ -168,6 +172,7 @@ def time_budget(binary, budget):
     attacks = [
         ("4 x nested glass, depth=64", 4, NESTED_GLASS, "/render?depth=64"),
         ("hot cell of 200,000 spheres, 8x8, spp=256", 1, HOT_CELL, "/render?spp=256"),
+        ("hot cell of 419,000 spheres (16 MiB), 8x8, spp=256", 1, HOT_CELL_FULL, "/render?spp=256"),
         ("one sphere, 1000 lights, 16x4096, spp=64", 1, MANY_LIGHTS, "/render?spp=64"),
     ]
     for name, n, body, path in attacks:

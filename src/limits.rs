@@ -34,6 +34,15 @@ pub const MAX_LENGTH_RATIO: f64 = 1e18;
 /// Largest ratio of an ellipsoid's longest axis to its shortest.
 pub const MAX_AXIS_RATIO: f64 = 1e12;
 
+/// Candidate tests one call of the index for a packet of rays may make
+/// before it gives up ([`crate::index::Answered`]): a render looks at its
+/// deadline only between calls, so this bounds what one call costs. At some
+/// 20–40 ns a test (16 lanes, or one ray), about a millisecond. Packets of
+/// the scenes in `scenes/` and of the benchmark families at 10^6 spheres
+/// make at most a few hundred; a cell of thousands of spheres at one point
+/// reaches it within a slab.
+pub const PACKET_TESTS: u64 = 1 << 15;
+
 /// Default recursion depth of reflection/refraction in the classic model (the course's limit).
 pub const DEFAULT_CLASSIC_DEPTH: u32 = 3;
 /// Safety cap on recursion in the browser model, whose own rule (remaining

@@ -5,7 +5,7 @@
 use glam::{Vec3, Vec3Swizzles};
 use proptest::prelude::*;
 use voxtrace::geometry::{Ellipsoid, Ray};
-use voxtrace::index::{BruteForce, EmptySpace, SphereIndex, VoxelHashGrid};
+use voxtrace::index::{Answered, BruteForce, EmptySpace, SphereIndex, VoxelHashGrid};
 
 /// The crate's generator with f32 helpers: scenes come from a seed
 /// proptest shrinks over.
@@ -337,7 +337,8 @@ fn check_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
                 .collect();
             for index in [&grid, &probing] {
                 let mut got = vec![None; dirs.len()];
-                index.closest_hits(origin, &dirs, t_min, t_max, &mut got);
+                let answered = index.closest_hits(origin, &dirs, t_min, t_max, &mut got);
+                assert_eq!(answered, Answered::All);
                 assert_eq!(got, want, "from {origin} in ({t_min}, {t_max}): {dirs:?}");
             }
         }
@@ -377,7 +378,9 @@ fn eye_tiles_agree_on_every_kind_of_scene() {
                         })
                         .collect();
                     let mut got = vec![None; dirs.len()];
-                    grid.closest_hits(Vec3::ZERO, &dirs, 1.0, f32::INFINITY, &mut got);
+                    let answered =
+                        grid.closest_hits(Vec3::ZERO, &dirs, 1.0, f32::INFINITY, &mut got);
+                    assert_eq!(answered, Answered::All);
                     for (d, hit) in dirs.iter().zip(&got) {
                         let want = brute.closest_hit(&Ray::new(Vec3::ZERO, *d), 1.0, f32::INFINITY);
                         assert_eq!(*hit, want, "{kind:?} {d}");
@@ -437,7 +440,10 @@ fn check_shadow_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
             .collect();
         for index in [&grid, &probing] {
             let mut got = vec![false; origins.len()];
-            index.any_hits_toward(light, &origins, &mut got);
+            assert_eq!(
+                index.any_hits_toward(light, &origins, &mut got),
+                Answered::All
+            );
             assert_eq!(got, want, "toward {light} from {origins:?}");
         }
     }
@@ -464,13 +470,109 @@ fn shadow_bundles_are_both_blocked_and_lit() {
         for _ in 0..40 {
             let (light, origins) = shadow_bundle(&mut rng, &shapes);
             let mut got = vec![false; origins.len()];
-            grid.any_hits_toward(light, &origins, &mut got);
+            assert_eq!(
+                grid.any_hits_toward(light, &origins, &mut got),
+                Answered::All
+            );
             blocked += got.iter().filter(|&&b| b).count();
             lit += got.iter().filter(|&&b| !b).count();
         }
         assert!(
             blocked > 50 && lit > 50,
             "{kind:?}: {blocked} blocked, {lit} lit"
+        );
+    }
+}
+
+/// `n` unit spheres at one point in front of the eye: every one lies in the
+/// same cells, so a packet of eye rays through them tests all of them.
+fn hot_cell(n: usize) -> Vec<Ellipsoid<f32>> {
+    vec![Ellipsoid::new(Vec3::new(0.0, 0.0, -5.0), Vec3::ONE); n]
+}
+
+/// A packet whose candidates would cost more than the index's budget of
+/// tests is given up, so that the renderer can look at its deadline between
+/// single rays; well below the budget it is answered, and exactly.
+#[test]
+fn a_packet_over_a_hot_cell_gives_up_past_the_test_budget() {
+    let budget = voxtrace::limits::PACKET_TESTS as usize;
+    let dirs: Vec<Vec3> = (0..64)
+        .map(|i| Vec3::new((i % 8) as f32 * 0.01, (i / 8) as f32 * 0.01, -1.0))
+        .collect();
+    for (spheres, expected) in [(budget / 64, Answered::All), (budget, Answered::GaveUp)] {
+        let shapes = hot_cell(spheres);
+        let (brute, grid) = (BruteForce::new(&shapes), VoxelHashGrid::new(&shapes));
+        let mut hits = vec![None; dirs.len()];
+        let answered = grid.closest_hits(Vec3::ZERO, &dirs, 1.0, f32::INFINITY, &mut hits);
+        assert_eq!(answered, expected, "{spheres} spheres in one cell");
+        if expected == Answered::All {
+            for (d, hit) in dirs.iter().zip(&hits) {
+                let want = brute.closest_hit(&Ray::new(Vec3::ZERO, *d), 1.0, f32::INFINITY);
+                assert_eq!(*hit, want);
+                assert!(want.is_some());
+            }
+        }
+    }
+}
+
+/// Whatever the budget, a call that says it answered every ray answered
+/// each exactly: giving up never leaves a wrong answer standing as a right
+/// one. `gave_up` counts the calls given up.
+fn check_budgeted_packets(shapes: &[Ellipsoid<f32>], seed: u64, tests: u64, gave_up: &mut usize) {
+    let brute = BruteForce::new(shapes);
+    let grid = VoxelHashGrid::new(shapes).with_packet_tests(tests);
+    let mut rng = Rng::new(seed ^ 0xb4d6);
+    for _ in 0..10 {
+        let (origin, dirs) = bundle(&mut rng, shapes);
+        let mut got = vec![None; dirs.len()];
+        match grid.closest_hits(origin, &dirs, 0.0, f32::INFINITY, &mut got) {
+            Answered::All => {
+                for (d, hit) in dirs.iter().zip(&got) {
+                    assert_eq!(
+                        *hit,
+                        brute.closest_hit(&Ray::new(origin, *d), 0.0, f32::INFINITY)
+                    );
+                }
+            }
+            Answered::GaveUp => *gave_up += 1,
+        }
+        let (light, origins) = shadow_bundle(&mut rng, shapes);
+        let mut got = vec![false; origins.len()];
+        match grid.any_hits_toward(light, &origins, &mut got) {
+            Answered::All => {
+                for (&o, &b) in origins.iter().zip(&got) {
+                    assert_eq!(b, brute.any_hit(&Ray::new(o, light - o), 1.0));
+                }
+            }
+            Answered::GaveUp => *gave_up += 1,
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn packets_answered_within_any_budget_are_exact(
+        kind in kinds(),
+        seed in any::<u64>(),
+        tests in 1u64..400,
+    ) {
+        check_budgeted_packets(&scene(kind, seed), seed, tests, &mut 0);
+    }
+}
+
+/// The budgets above both give up and answer, on every kind of scene.
+#[test]
+fn small_budgets_both_give_up_and_answer() {
+    for (i, kind) in ALL_KINDS.into_iter().enumerate() {
+        let shapes = scene(kind, 31 + i as u64);
+        let (mut small, mut ample) = (0, 0);
+        check_budgeted_packets(&shapes, 5, 4, &mut small);
+        check_budgeted_packets(&shapes, 5, 1 << 40, &mut ample);
+        assert!(
+            small > 0 && ample == 0,
+            "{kind:?}: {small} given up at 4 tests, {ample} at 2^40"
         );
     }
 }

@@ -14,6 +14,21 @@ pub use order::compact_order;
 
 use crate::geometry::{Ray, Real, V3};
 
+/// Whether a call for many rays answered every one of them.
+///
+/// One call is one stretch of work nothing interrupts, so an index bounds
+/// it: a call that would test more than [`crate::limits::PACKET_TESTS`]
+/// candidates gives up instead, and its caller traces those rays one at a
+/// time, as often as it likes to look at a deadline between them.
+#[must_use]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Answered {
+    /// Every ray's answer is in `out`.
+    All,
+    /// The rays cost too much together; `out` holds nothing to use.
+    GaveUp,
+}
+
 /// The nearest sphere a ray meets and where along the ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit<R> {
@@ -43,10 +58,11 @@ pub trait SphereIndex<R: Real>: Sync {
         t_min: R,
         t_max: R,
         out: &mut [Option<Hit<R>>],
-    ) {
+    ) -> Answered {
         for (dir, hit) in dirs.iter().zip(out) {
             *hit = self.closest_hit(&Ray::new(origin, *dir), t_min, t_max);
         }
+        Answered::All
     }
     /// Whether any sphere meets the ray with t in (0, t_max). Shadow rays.
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool;
@@ -55,9 +71,10 @@ pub trait SphereIndex<R: Real>: Sync {
     /// `o = origins[i]`, blocked by a hit with t in (0, 1). Rays from
     /// neighbouring points should be adjacent ([`compact_order`] lists them
     /// so): an index may trace them together.
-    fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
+    fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) -> Answered {
         for (&o, blocked) in origins.iter().zip(out) {
             *blocked = self.any_hit(&Ray::new(o, light - o), R::one());
         }
+        Answered::All
     }
 }

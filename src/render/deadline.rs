@@ -4,15 +4,18 @@
 //! sample it shades, every shadow ray and every bounce, so it stops within
 //! one ray's (or one packet's) walk of being told, whatever the scene, the
 //! samples or the depth: an exponential ray tree is cut like anything else.
+//! A packet's walk is itself bounded: the index gives up on a packet that
+//! would test more than [`crate::limits::PACKET_TESTS`] candidates, and its
+//! rays go one at a time, each checked.
 //! The flag costs a relaxed load to check. The clock is never read on the
 //! rays' path: a timer thread raises the flag at the deadline, and whoever
 //! holds a [`CancelToken`] raises it when the render is no longer wanted.
 
-use crate::index::PACKET_RAYS;
+use crate::index::{Answered, PACKET_RAYS};
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// A flag another thread raises to stop a render (its client left, or a
 /// budget kept by the caller ran out). Clones share the flag.
@@ -90,25 +93,13 @@ pub(super) struct Stop {
     /// Raised by the timer at the deadline.
     expired: AtomicBool,
     cancel: Option<CancelToken>,
-    /// Set once a packet of rays took longer than [`SLOW_PACKET`] in a
-    /// render that can be stopped: from then on rays are traced one at a
-    /// time, each checked.
+    /// Every ray traced alone (for tests: the single-ray path a packet that
+    /// gives up takes must give the packets' image).
     single_rays: AtomicBool,
-    /// Whether anything can stop the render (a deadline or a cancel token):
-    /// if not, nothing gains from single rays.
-    stoppable: bool,
     /// The render has ended: the timer may go.
     done: Mutex<bool>,
     ended: Condvar,
 }
-
-/// A packet of rays is one walk of the index that nothing interrupts.
-/// Walks are some tens of microseconds; one that takes this long shows a
-/// scene whose candidate lists are huge (a hot cell of many thousand
-/// spheres), where a packet may take 64 single walks' time, so the rest of
-/// the render traces single rays, which stop sooner. The result is the
-/// same: the index finds every ray's exact nearest hit either way.
-pub(super) const SLOW_PACKET: Duration = Duration::from_millis(10);
 
 impl Stop {
     pub fn new(deadline: Option<&Deadline>) -> Self {
@@ -116,7 +107,6 @@ impl Stop {
             expired: AtomicBool::new(false),
             cancel: deadline.and_then(|d| d.cancel.clone()),
             single_rays: AtomicBool::new(false),
-            stoppable: deadline.is_some(),
             done: Mutex::new(false),
             ended: Condvar::new(),
         }
@@ -164,40 +154,32 @@ impl Stop {
         self.ended.notify_all();
     }
 
-    pub fn single_rays(&self) -> bool {
-        self.single_rays.load(Ordering::Relaxed)
-    }
-
-    /// Notes how long one packet of rays took.
-    pub fn packet_took(&self, time: Duration) {
-        if self.stoppable && time > SLOW_PACKET {
-            self.single_rays.store(true, Ordering::Relaxed);
-        }
-    }
-
     /// Traces `n` rays in packets of [`PACKET_RAYS`] (`trace(range, true)`),
-    /// checking between packets; or, once a packet has been slow, one at a
-    /// time (`trace(i..i + 1, false)`), checking between rays. The rays
-    /// traced in packets, or None if told to stop.
-    pub fn in_packets(&self, n: usize, mut trace: impl FnMut(Range<usize>, bool)) -> Option<u64> {
+    /// checking between packets; the rays of a packet the index gave up on
+    /// go one at a time (`trace(i..i + 1, false)`, whose answer is not
+    /// read), checking between rays. The rays traced in packets, or None if
+    /// told to stop.
+    pub fn in_packets(
+        &self,
+        n: usize,
+        mut trace: impl FnMut(Range<usize>, bool) -> Answered,
+    ) -> Option<u64> {
         let mut packed = 0;
+        let together = !self.single_rays.load(Ordering::Relaxed);
         for start in (0..n).step_by(PACKET_RAYS) {
             let end = (start + PACKET_RAYS).min(n);
             if self.now() {
                 return None;
             }
-            if self.single_rays() {
-                for i in start..end {
-                    if self.now() {
-                        return None;
-                    }
-                    trace(i..i + 1, false);
-                }
-            } else {
-                let started = Instant::now();
-                trace(start..end, true);
-                self.packet_took(started.elapsed());
+            if together && trace(start..end, true) == Answered::All {
                 packed += (end - start) as u64;
+                continue;
+            }
+            for i in start..end {
+                if self.now() {
+                    return None;
+                }
+                let _ = trace(i..i + 1, false);
             }
         }
         Some(packed)
@@ -212,6 +194,7 @@ impl Stop {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn the_timer_raises_the_flag_at_the_deadline_and_not_after_the_end() {
@@ -240,20 +223,48 @@ mod tests {
         assert_eq!(a.outcome(), Some(Stopped::Cancelled));
     }
 
-    #[test]
-    fn only_a_slow_packet_switches_to_single_rays() {
-        let token = CancelToken::new();
-        let stop = Stop::new(Some(&Deadline::on_cancel(&token)));
-        stop.packet_took(Duration::from_micros(50));
-        assert!(!stop.single_rays());
-        stop.packet_took(SLOW_PACKET * 2);
-        assert!(stop.single_rays());
+    /// Which calls `in_packets` makes when the index gives up on the packet
+    /// starting at ray `gives_up`.
+    fn calls(stop: &Stop, n: usize, gives_up: usize) -> (Vec<(Range<usize>, bool)>, Option<u64>) {
+        let mut calls = Vec::new();
+        let packed = stop.in_packets(n, |rays, together| {
+            calls.push((rays.clone(), together));
+            if together && rays.start == gives_up {
+                Answered::GaveUp
+            } else {
+                Answered::All
+            }
+        });
+        (calls, packed)
     }
 
     #[test]
-    fn a_render_nothing_can_stop_keeps_its_packets() {
+    fn the_rays_of_a_packet_the_index_gave_up_on_go_one_at_a_time() {
         let stop = Stop::new(None);
-        stop.packet_took(SLOW_PACKET * 2);
-        assert!(!stop.single_rays());
+        let (calls, packed) = calls(&stop, 2 * PACKET_RAYS + 3, PACKET_RAYS);
+        let p = PACKET_RAYS;
+        let mut expected = vec![(0..p, true), (p..2 * p, true)];
+        expected.extend((p..2 * p).map(|i| (i..i + 1, false)));
+        expected.push((2 * p..2 * p + 3, true));
+        assert_eq!(calls, expected);
+        assert_eq!(packed, Some(p as u64 + 3));
+    }
+
+    #[test]
+    fn a_stop_between_single_rays_ends_the_trace() {
+        let token = CancelToken::new();
+        let stop = Stop::new(Some(&Deadline::on_cancel(&token)));
+        let mut singles = 0;
+        let packed = stop.in_packets(PACKET_RAYS, |_, together| {
+            if together {
+                return Answered::GaveUp;
+            }
+            singles += 1;
+            if singles == 5 {
+                token.cancel();
+            }
+            Answered::All
+        });
+        assert_eq!((packed, singles), (None, 5));
     }
 }

@@ -9,7 +9,7 @@ pub use camera::PixelSampler;
 pub use deadline::{CancelToken, Deadline};
 
 use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
-use crate::index::{BruteForce, SphereIndex, VoxelHashGrid};
+use crate::index::{Answered, BruteForce, SphereIndex, VoxelHashGrid};
 use crate::limits;
 use crate::output::Image;
 use crate::scene::{Dialect, Scene};
@@ -503,8 +503,8 @@ impl<R: Real> BlockRays<R> {
 }
 
 /// The nearest hits of the eye rays `dirs` into `hits`, in packets (the
-/// ones the index would cut the list into itself) or, once a packet has
-/// been slow, one at a time ([`Stop::in_packets`]); `packed` counts the
+/// ones the index would cut the list into itself) or, where the index gave
+/// up on a packet, one at a time ([`Stop::in_packets`]); `packed` counts the
 /// rays traced in packets. `false` if told to stop.
 fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
@@ -515,9 +515,10 @@ fn eye_hits<R: Real, I: SphereIndex<R> + ?Sized>(
 ) -> bool {
     let traced = stop.in_packets(dirs.len(), |rays, together| {
         if together {
-            tracer.eye_hits(&dirs[rays.clone()], &mut hits[rays]);
+            tracer.eye_hits(&dirs[rays.clone()], &mut hits[rays])
         } else {
             hits[rays.start] = tracer.eye_hit(dirs[rays.start]);
+            Answered::All
         }
     });
     traced.map(|n| packed.eye += n).is_some()
@@ -603,6 +604,45 @@ mod tests {
                 assert_eq!(s, RayCounts::default());
             }
         }
+    }
+
+    /// Where the index gives up on packets, their rays go one at a time
+    /// and the image is the same, byte for byte.
+    #[test]
+    fn packets_the_index_gives_up_on_give_the_same_image() {
+        let scene = crate::scene::parse(include_bytes!("../../scenes/thousands.txt")).unwrap();
+        let shapes = shapes_of::<f32>(&scene);
+        let options = RenderOptions::default();
+        let render = |index: &VoxelHashGrid<f32>| {
+            let stop = Stop::new(None);
+            trace_all(
+                &scene,
+                &shapes,
+                index,
+                &options,
+                Duration::ZERO,
+                &|_| {},
+                &stop,
+            )
+            .unwrap()
+        };
+        let whole = render(&VoxelHashGrid::new(&shapes));
+        let starved = render(&VoxelHashGrid::new(&shapes).with_packet_tests(16));
+        assert_eq!(whole.image, starved.image);
+        assert_eq!(whole.stats.rays, starved.stats.rays);
+        assert_eq!(whole.stats.in_packets.eye, whole.stats.rays.eye);
+        let (eye, shadow) = (
+            starved.stats.in_packets.eye,
+            starved.stats.in_packets.shadow,
+        );
+        assert!(
+            eye > 0 && eye < whole.stats.in_packets.eye,
+            "{eye} eye rays in packets"
+        );
+        assert!(
+            shadow > 0 && shadow < whole.stats.in_packets.shadow,
+            "{shadow} shadow rays"
+        );
     }
 
     /// Without reflection or refraction every ray is an eye ray or one of

@@ -6,7 +6,7 @@
 use super::deadline::Stop;
 use super::{RayCounts, RenderOptions, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
-use crate::index::{compact_order, Hit, SphereIndex};
+use crate::index::{compact_order, Answered, Hit, SphereIndex};
 use crate::limits;
 use crate::scene::{Dialect, Material, Scene};
 use glam::DVec3;
@@ -91,10 +91,11 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     }
 
     /// The nearest hits of eye rays with directions `dirs` (in the geometry's
-    /// precision) beyond the near plane (t > 1), searched together.
-    pub fn eye_hits(&self, dirs: &[V3<R>], out: &mut [Option<Hit<R>>]) {
+    /// precision) beyond the near plane (t > 1), searched together, unless
+    /// the index gives up on them.
+    pub fn eye_hits(&self, dirs: &[V3<R>], out: &mut [Option<Hit<R>>]) -> Answered {
         self.index
-            .closest_hits(V3::<R>::ZERO, dirs, R::one(), R::infinity(), out);
+            .closest_hits(V3::<R>::ZERO, dirs, R::one(), R::infinity(), out)
     }
 
     /// [`Self::eye_hits`] for one ray.
@@ -176,10 +177,11 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         let traced = self.stop.in_packets(origins.len(), |rays, together| {
             if together {
                 self.index
-                    .any_hits_toward(light, &origins[rays.clone()], &mut out[rays]);
+                    .any_hits_toward(light, &origins[rays.clone()], &mut out[rays])
             } else {
                 let o = origins[rays.start];
                 out[rays.start] = self.index.any_hit(&Ray::new(o, light - o), R::one());
+                Answered::All
             }
         });
         traced.map(|n| packed.shadow += n).is_some()

@@ -12,7 +12,7 @@
 use super::gen::{generate, Distribution, GenOptions, Rng};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Vec3Ops, V3};
 use crate::index::{
-    compact_order, BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_RAYS,
+    compact_order, Answered, BruteForce, EmptySpace, Hit, SphereIndex, VoxelHashGrid, PACKET_RAYS,
 };
 use crate::render::{self, PixelSampler};
 use crate::scene::{self, Scene, SceneError};
@@ -221,7 +221,14 @@ fn primary_packets(index: &impl SphereIndex<f32>, dirs: &[V3<f32>]) -> Vec<Optio
         .zip(hits.par_chunks_mut(PACKET_RAYS))
         .with_min_len(16)
         .for_each(|(dirs, out)| {
-            index.closest_hits(V3::<f32>::ZERO, dirs, 1.0, f32::INFINITY, out);
+            // As the renderer does with a packet the index gives up on.
+            if index.closest_hits(V3::<f32>::ZERO, dirs, 1.0, f32::INFINITY, out)
+                == Answered::GaveUp
+            {
+                for (&dir, hit) in dirs.iter().zip(out) {
+                    *hit = index.closest_hit(&Ray::new(V3::<f32>::ZERO, dir), 1.0, f32::INFINITY);
+                }
+            }
         });
     hits
 }
@@ -285,13 +292,24 @@ fn shadow_rays(
         .collect()
 }
 
-/// The shadow rays batch by batch, each batch's rays together.
+/// The shadow rays batch by batch, each batch's rays in packets of
+/// [`PACKET_RAYS`], as the renderer hands them to the index.
 fn shadow_packets(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usize {
     batches
         .par_iter()
         .map(|batch| {
             let mut blocked = vec![false; batch.origins.len()];
-            index.any_hits_toward(batch.light, &batch.origins, &mut blocked);
+            for (origins, out) in batch
+                .origins
+                .chunks(PACKET_RAYS)
+                .zip(blocked.chunks_mut(PACKET_RAYS))
+            {
+                if index.any_hits_toward(batch.light, origins, out) == Answered::GaveUp {
+                    for (&o, b) in origins.iter().zip(out) {
+                        *b = index.any_hit(&Ray::new(o, batch.light - o), 1.0);
+                    }
+                }
+            }
             blocked.iter().filter(|&&b| b).count()
         })
         .sum()

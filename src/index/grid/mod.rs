@@ -23,7 +23,7 @@ mod slab;
 mod table;
 mod walk;
 
-use super::{Hit, SphereIndex};
+use super::{Answered, Hit, SphereIndex};
 use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
 pub use packet::RAYS as PACKET_RAYS;
@@ -108,6 +108,8 @@ pub struct VoxelHashGrid<R: Real> {
     /// Coarsest first: big spheres bound the search of the small ones.
     levels: Vec<Level>,
     empty_space: EmptySpace,
+    /// Candidate tests one call for many rays may make ([`TestBudget`]).
+    packet_tests: u64,
 }
 
 /// The last sphere tested per slot: a sphere spanning several cells along a
@@ -127,6 +129,34 @@ impl Mailbox {
         let first = *slot != id;
         *slot = id;
         first
+    }
+}
+
+/// The candidate tests one call for many rays may still make (see
+/// [`Answered`]). A lane test of a group counts one, as does one ray's test.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TestBudget {
+    left: u64,
+}
+
+impl TestBudget {
+    pub(super) fn new(tests: u64) -> Self {
+        TestBudget { left: tests }
+    }
+
+    /// A budget a single ray's walk spends without ever running out.
+    fn unlimited() -> Self {
+        TestBudget { left: u64::MAX }
+    }
+
+    #[inline(always)]
+    pub(super) fn spend(&mut self, tests: u64) {
+        self.left = self.left.saturating_sub(tests);
+    }
+
+    #[inline(always)]
+    pub(super) fn spent(&self) -> bool {
+        self.left == 0
     }
 }
 
@@ -152,7 +182,15 @@ impl<R: Real> VoxelHashGrid<R> {
             short,
             levels,
             empty_space: EmptySpace::default(),
+            packet_tests: crate::limits::PACKET_TESTS,
         }
+    }
+
+    /// The same grid, giving up on a call for many rays past `tests`
+    /// candidate tests instead of [`crate::limits::PACKET_TESTS`].
+    pub fn with_packet_tests(mut self, tests: u64) -> Self {
+        self.packet_tests = tests.max(1);
+        self
     }
 
     /// The same grid, crossing empty space the way `mode` says.
@@ -190,9 +228,43 @@ impl<R: Real> VoxelHashGrid<R> {
 
 impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
     fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>> {
+        self.closest_hit_spending(ray, t_min, t_max, &mut TestBudget::unlimited())
+    }
+
+    fn closest_hits(
+        &self,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) -> Answered {
+        self.packet_closest_hits(origin, dirs, t_min, t_max, out)
+    }
+
+    fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) -> Answered {
+        self.packet_any_hits_toward(light, origins, out)
+    }
+
+    fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
+        self.any_hit_spending(ray, t_max, &mut TestBudget::unlimited())
+    }
+}
+
+impl<R: Real> VoxelHashGrid<R> {
+    /// [`SphereIndex::closest_hit`], spending one of `budget` per test (a
+    /// single ray's walk is never cut short: its caller looks between rays).
+    pub(super) fn closest_hit_spending(
+        &self,
+        ray: &Ray<R>,
+        t_min: R,
+        t_max: R,
+        budget: &mut TestBudget,
+    ) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
         let mut best: Option<Hit<R>> = None;
-        let test = |i: u32, best: &mut Option<Hit<R>>| {
+        let mut test = |i: u32, best: &mut Option<Hit<R>>| {
+            budget.spend(1);
             let sphere = &self.spheres[i as usize];
             // Up to and including the best t, so that an equal t with a
             // lower id still wins, as in brute force.
@@ -232,36 +304,21 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
         best
     }
 
-    fn closest_hits(
-        &self,
-        origin: V3<R>,
-        dirs: &[V3<R>],
-        t_min: R,
-        t_max: R,
-        out: &mut [Option<Hit<R>>],
-    ) {
-        self.packet_closest_hits(origin, dirs, t_min, t_max, out);
-    }
-
-    fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
-        self.packet_any_hits_toward(light, origins, out);
-    }
-
-    fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
+    /// [`SphereIndex::any_hit`], spending one of `budget` per test.
+    pub(super) fn any_hit_spending(&self, ray: &Ray<R>, t_max: R, budget: &mut TestBudget) -> bool {
         let Some(wide) = Ray64::new(ray) else {
             return false;
         };
+        budget.spend(self.short.len() as u64);
         if self.short.iter().any(|&i| self.blocks(i, ray, t_max)) {
             return true;
         }
         let mut mailbox = Mailbox::new();
         self.levels
             .iter()
-            .any(|level| self.any_hit_in(level, &wide, ray, t_max, &mut mailbox))
+            .any(|level| self.any_hit_in(level, &wide, ray, t_max, &mut mailbox, budget))
     }
-}
 
-impl<R: Real> VoxelHashGrid<R> {
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
     #[inline(always)]
     fn blocks(&self, i: u32, ray: &Ray<R>, t_max: R) -> bool {
@@ -272,7 +329,7 @@ impl<R: Real> VoxelHashGrid<R> {
     }
 
     /// Whether a sphere of `level` meets the ray (`wide` in f64) with t in
-    /// (0, t_max).
+    /// (0, t_max), spending one of `budget` per test.
     fn any_hit_in(
         &self,
         level: &Level,
@@ -280,6 +337,7 @@ impl<R: Real> VoxelHashGrid<R> {
         ray: &Ray<R>,
         t_max: R,
         mailbox: &mut Mailbox,
+        budget: &mut TestBudget,
     ) -> bool {
         let slack = level.slack / wide.length;
         let mut found = false;
@@ -289,9 +347,12 @@ impl<R: Real> VoxelHashGrid<R> {
             t_max.to_f64() + slack,
             self.empty_space,
             |ids| {
-                found = ids
-                    .iter()
-                    .any(|&i| mailbox.first_visit(i) && self.blocks(i, ray, t_max));
+                found = ids.iter().any(|&i| {
+                    mailbox.first_visit(i) && {
+                        budget.spend(1);
+                        self.blocks(i, ray, t_max)
+                    }
+                });
                 if found {
                     f64::NEG_INFINITY
                 } else {

@@ -12,10 +12,10 @@
 use super::cone::Cones;
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
-use super::VoxelHashGrid;
+use super::{TestBudget, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
-use crate::index::{Hit, SphereIndex};
+use crate::index::{Answered, Hit};
 
 pub use crate::geometry::lanes::LANES;
 /// Groups of [`LANES`] rays per packet.
@@ -95,25 +95,38 @@ impl<R: Real> Lanes<R> {
 }
 
 /// The rays of a packet, group by group (ray i is lane i mod [`LANES`] of
-/// group i / [`LANES`]).
-type Groups<R> = [Lanes<R>; GROUPS];
+/// group i / [`LANES`]), and the tests the call may still make.
+struct Groups<R: Real> {
+    groups: [Lanes<R>; GROUPS],
+    budget: TestBudget,
+}
 
 impl<R: Real> Searching for Groups<R> {
     fn t_min(&self) -> f64 {
-        self[0].t_min.to_f64()
+        self.groups[0].t_min.to_f64()
     }
 
+    /// −∞ for every ray once the budget is spent: the walk ends.
     #[inline(always)]
     fn reach(&self, i: usize) -> f64 {
-        let lanes = &self[i / LANES];
+        if self.budget.spent() {
+            return f64::NEG_INFINITY;
+        }
+        let lanes = &self.groups[i / LANES];
         lanes.best_t[i % LANES].min(lanes.t_max).to_f64()
     }
 
     #[inline(always)]
     fn take_improved(&mut self) -> u64 {
-        self.iter_mut().enumerate().fold(0, |mask, (g, lanes)| {
-            mask | u64::from(std::mem::take(&mut lanes.improved)) << (g * LANES)
-        })
+        if self.budget.spent() {
+            return u64::MAX;
+        }
+        self.groups
+            .iter_mut()
+            .enumerate()
+            .fold(0, |mask, (g, lanes)| {
+                mask | u64::from(std::mem::take(&mut lanes.improved)) << (g * LANES)
+            })
     }
 }
 
@@ -160,8 +173,9 @@ fn aim_eye_packet<R: Real>(packet: &mut Packet, origin: V3<R>, dirs: &[V3<R>; RA
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`SphereIndex::closest_hits`]: packets of [`RAYS`] rays, and rays
-    /// one at a time where a packet cannot be formed.
+    /// [`crate::index::SphereIndex::closest_hits`]: packets of [`RAYS`]
+    /// rays, and rays one at a time where a packet cannot be formed, all
+    /// within one [`TestBudget`].
     pub(super) fn packet_closest_hits(
         &self,
         origin: V3<R>,
@@ -169,26 +183,37 @@ impl<R: Real> VoxelHashGrid<R> {
         t_min: R,
         t_max: R,
         out: &mut [Option<Hit<R>>],
-    ) {
-        let mut groups: Groups<R> = std::array::from_fn(|_| Lanes::new(origin, t_min));
+    ) -> Answered {
+        let mut rays = Groups {
+            groups: std::array::from_fn(|_| Lanes::new(origin, t_min)),
+            budget: TestBudget::new(self.packet_tests),
+        };
         let mut packet = Packet::new();
         for (dirs, out) in dirs.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // A short last packet repeats its last ray in the spare lanes.
             let padded: [V3<R>; RAYS] = std::array::from_fn(|i| dirs[i.min(dirs.len() - 1)]);
             if aim_eye_packet::<R>(&mut packet, origin, &padded) {
-                for (g, lanes) in groups.iter_mut().enumerate() {
+                for (g, lanes) in rays.groups.iter_mut().enumerate() {
                     lanes.aim(&padded[g * LANES..(g + 1) * LANES], t_max);
                 }
-                self.trace_packet(&packet, &mut groups, t_min);
+                self.trace_packet(&packet, &mut rays, t_min);
                 for (i, hit) in out.iter_mut().enumerate() {
-                    *hit = groups[i / LANES].hit(i % LANES);
+                    *hit = rays.groups[i / LANES].hit(i % LANES);
                 }
             } else {
                 for (dir, hit) in dirs.iter().zip(out.iter_mut()) {
-                    *hit = self.closest_hit(&Ray::new(origin, *dir), t_min, t_max);
+                    let ray = Ray::new(origin, *dir);
+                    *hit = self.closest_hit_spending(&ray, t_min, t_max, &mut rays.budget);
+                    if rays.budget.spent() {
+                        return Answered::GaveUp;
+                    }
                 }
             }
+            if rays.budget.spent() {
+                return Answered::GaveUp;
+            }
         }
+        Answered::All
     }
 
     fn trace_packet(&self, packet: &Packet, groups: &mut Groups<R>, t_min: R) {
@@ -196,6 +221,9 @@ impl<R: Real> VoxelHashGrid<R> {
         let cones = Cones::new(packet, t_min.to_f64());
         for &i in &self.short {
             self.test_eye_groups(i, &cones, groups, (1 << GROUPS) - 1);
+        }
+        if groups.budget.spent() {
+            return;
         }
         for level in &self.levels {
             let all = u64::MAX;
@@ -208,24 +236,31 @@ impl<R: Real> VoxelHashGrid<R> {
                 |ids, groups, live| {
                     let searching = groups_of(live);
                     for &i in ids {
+                        if groups.budget.spent() {
+                            return;
+                        }
                         if mailbox.first_visit(i) {
                             self.test_eye_groups(i, &cones, groups, searching);
                         }
                     }
                 },
             );
+            if groups.budget.spent() {
+                return;
+            }
         }
     }
 
     /// Tests candidate `i` against the groups among `searching` whose cones
-    /// it may meet.
+    /// it may meet, spending a test per group.
     #[inline(always)]
-    fn test_eye_groups(&self, i: u32, cones: &Cones, groups: &mut Groups<R>, searching: u32) {
+    fn test_eye_groups(&self, i: u32, cones: &Cones, rays: &mut Groups<R>, searching: u32) {
         let sphere = &self.spheres[i as usize];
         let center = sphere.frame.center.to_dvec3();
         let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        rays.budget.spend(u64::from(hit.count_ones()));
         for g in set_bits(u64::from(hit)) {
-            groups[g].test(&sphere.frame, sphere.id);
+            rays.groups[g].test(&sphere.frame, sphere.id);
         }
     }
 }

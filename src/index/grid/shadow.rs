@@ -27,10 +27,10 @@ use super::cone::Cones;
 use super::packet::{groups_of, PacketMailbox, GROUPS, LANES, RAYS};
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
-use super::{Level, Mailbox, VoxelHashGrid};
+use super::{Level, Mailbox, TestBudget, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
-use crate::index::SphereIndex;
+use crate::index::Answered;
 use glam::DVec3;
 
 /// One group of a packet's shadow rays, as the renderer casts them (from
@@ -77,7 +77,12 @@ impl<R: Real> ShadowLanes<R> {
     }
 }
 
-type ShadowGroups<R> = [ShadowLanes<R>; GROUPS];
+/// A packet's shadow rays, group by group, and the tests the call may
+/// still make.
+struct ShadowGroups<R: Real> {
+    groups: [ShadowLanes<R>; GROUPS],
+    budget: TestBudget,
+}
 
 impl<R: Real> Searching for ShadowGroups<R> {
     /// The walk runs from each ray's end (t' = 0) to its origin (t' = 1).
@@ -85,9 +90,10 @@ impl<R: Real> Searching for ShadowGroups<R> {
         0.0
     }
 
+    /// −∞ for a blocked ray, and for every ray once the budget is spent.
     #[inline(always)]
     fn reach(&self, i: usize) -> f64 {
-        if self[i / LANES].blocked >> (i % LANES) & 1 == 1 {
+        if self.budget.spent() || self.groups[i / LANES].blocked >> (i % LANES) & 1 == 1 {
             f64::NEG_INFINITY
         } else {
             1.0
@@ -96,9 +102,15 @@ impl<R: Real> Searching for ShadowGroups<R> {
 
     #[inline(always)]
     fn take_improved(&mut self) -> u64 {
-        self.iter_mut().enumerate().fold(0, |mask, (g, lanes)| {
-            mask | u64::from(std::mem::take(&mut lanes.newly)) << (g * LANES)
-        })
+        if self.budget.spent() {
+            return u64::MAX;
+        }
+        self.groups
+            .iter_mut()
+            .enumerate()
+            .fold(0, |mask, (g, lanes)| {
+                mask | u64::from(std::mem::take(&mut lanes.newly)) << (g * LANES)
+            })
     }
 }
 
@@ -142,59 +154,77 @@ fn aim_shadow_packet<R: Real>(
 const WIDEST_CELLS_PER_RAY: f64 = 0.25;
 
 /// The rays of `groups` still unblocked, one bit per ray.
-fn open_rays<R: Real>(groups: &ShadowGroups<R>) -> u64 {
-    groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
+fn open_rays<R: Real>(rays: &ShadowGroups<R>) -> u64 {
+    rays.groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
         mask | u64::from(!lanes.blocked & ALL_LANES) << (g * LANES)
     })
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`SphereIndex::any_hits_toward`]: packets of [`RAYS`] consecutive
-    /// rays, and rays one at a time where a packet cannot be formed.
-    pub(super) fn packet_any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) {
-        let mut groups: ShadowGroups<R> = std::array::from_fn(|_| ShadowLanes::new());
+    /// [`crate::index::SphereIndex::any_hits_toward`]: packets of
+    /// [`RAYS`] consecutive rays, and rays one at a time where a packet
+    /// cannot be formed, all within one [`TestBudget`].
+    pub(super) fn packet_any_hits_toward(
+        &self,
+        light: V3<R>,
+        origins: &[V3<R>],
+        out: &mut [bool],
+    ) -> Answered {
+        let mut rays = ShadowGroups {
+            groups: std::array::from_fn(|_| ShadowLanes::new()),
+            budget: TestBudget::new(self.packet_tests),
+        };
         let mut packet = Packet::new();
         for (origins, out) in origins.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // A short last packet repeats its last ray in the spare lanes.
             let padded: [V3<R>; RAYS] = std::array::from_fn(|i| origins[i.min(origins.len() - 1)]);
             let dirs = padded.map(|o| light - o);
-            if !aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs) {
-                for (&o, blocked) in origins.iter().zip(out.iter_mut()) {
-                    *blocked = self.any_hit(&Ray::new(o, light - o), R::one());
+            if aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs) {
+                for (g, lanes) in rays.groups.iter_mut().enumerate() {
+                    let lanes_of = g * LANES..(g + 1) * LANES;
+                    lanes.aim(&padded[lanes_of.clone()], &dirs[lanes_of]);
                 }
-                continue;
+                self.trace_shadow_packet(&packet, &mut rays);
+                for (i, blocked) in out.iter_mut().enumerate() {
+                    *blocked = rays.groups[i / LANES].blocked >> (i % LANES) & 1 == 1;
+                }
+            } else {
+                for (&o, blocked) in origins.iter().zip(out.iter_mut()) {
+                    let ray = Ray::new(o, light - o);
+                    *blocked = self.any_hit_spending(&ray, R::one(), &mut rays.budget);
+                    if rays.budget.spent() {
+                        return Answered::GaveUp;
+                    }
+                }
             }
-            for (g, lanes) in groups.iter_mut().enumerate() {
-                let lanes_of = g * LANES..(g + 1) * LANES;
-                lanes.aim(&padded[lanes_of.clone()], &dirs[lanes_of]);
-            }
-            self.trace_shadow_packet(&packet, &mut groups);
-            for (i, blocked) in out.iter_mut().enumerate() {
-                *blocked = groups[i / LANES].blocked >> (i % LANES) & 1 == 1;
+            if rays.budget.spent() {
+                return Answered::GaveUp;
             }
         }
+        Answered::All
     }
 
     /// Tests the short list, then walks each level with the whole packet,
     /// or group by group where the packet fans out too wide, or ray by ray
     /// where a group does.
-    fn trace_shadow_packet(&self, packet: &Packet, groups: &mut ShadowGroups<R>) {
+    fn trace_shadow_packet(&self, packet: &Packet, rays: &mut ShadowGroups<R>) {
         let cones = Cones::new(packet, 0.0);
         for &i in &self.short {
-            self.test_shadow_groups(i, &cones, groups, (1 << GROUPS) - 1);
+            self.test_shadow_groups(i, &cones, rays, (1 << GROUPS) - 1);
         }
         for level in &self.levels {
-            let open = open_rays(groups);
-            if open == 0 {
+            let open = open_rays(rays);
+            if open == 0 || rays.budget.spent() {
                 return;
             }
-            if self.walk_shadow_level(level, packet, &cones, groups, open) {
+            if self.walk_shadow_level(level, packet, &cones, rays, open) {
                 continue;
             }
             for g in 0..GROUPS {
                 let among = open & u64::from(ALL_LANES) << (g * LANES);
-                if among != 0 && !self.walk_shadow_level(level, packet, &cones, groups, among) {
-                    self.shadow_rays_one_by_one(level, &mut groups[g]);
+                if among != 0 && !self.walk_shadow_level(level, packet, &cones, rays, among) {
+                    let ShadowGroups { groups, budget } = rays;
+                    self.shadow_rays_one_by_one(level, &mut groups[g], budget);
                 }
             }
         }
@@ -207,7 +237,7 @@ impl<R: Real> VoxelHashGrid<R> {
         level: &Level,
         packet: &Packet,
         cones: &Cones,
-        groups: &mut ShadowGroups<R>,
+        rays: &mut ShadowGroups<R>,
         among: u64,
     ) -> bool {
         let widest = WIDEST_CELLS_PER_RAY * f64::from(among.count_ones());
@@ -216,18 +246,20 @@ impl<R: Real> VoxelHashGrid<R> {
         let mut mailbox = PacketMailbox::new();
         level.walk_packet(
             packet,
-            groups,
+            rays,
             among,
             widest,
             self.empty_space,
-            |ids, groups, live| {
+            |ids, rays, live| {
                 let mut searching = groups_of(live);
                 for &i in ids {
+                    if rays.budget.spent() {
+                        return;
+                    }
                     // Only a new blocker can close a group.
-                    if mailbox.first_visit(i)
-                        && self.test_shadow_groups(i, cones, groups, searching)
+                    if mailbox.first_visit(i) && self.test_shadow_groups(i, cones, rays, searching)
                     {
-                        searching &= open_groups(groups);
+                        searching &= open_groups(rays);
                     }
                 }
             },
@@ -235,29 +267,36 @@ impl<R: Real> VoxelHashGrid<R> {
     }
 
     /// Tests candidate `i` against the groups among `searching` whose cones
-    /// it may meet; true if it blocks a ray.
+    /// it may meet, spending a test per group; true if it blocks a ray.
     #[inline(always)]
     fn test_shadow_groups(
         &self,
         i: u32,
         cones: &Cones,
-        groups: &mut ShadowGroups<R>,
+        rays: &mut ShadowGroups<R>,
         searching: u32,
     ) -> bool {
         let sphere = &self.spheres[i as usize];
         let center = sphere.frame.center.to_dvec3();
         let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        rays.budget.spend(u64::from(hit.count_ones()));
         let mut blocks = false;
         for g in set_bits(u64::from(hit)) {
-            blocks |= groups[g].test(&sphere.frame);
+            blocks |= rays.groups[g].test(&sphere.frame);
         }
         blocks
     }
 
-    /// The open lanes of `lanes` through `level`, one ray at a time.
-    fn shadow_rays_one_by_one(&self, level: &Level, lanes: &mut ShadowLanes<R>) {
+    /// The open lanes of `lanes` through `level`, one ray at a time, until
+    /// `budget` is spent.
+    fn shadow_rays_one_by_one(
+        &self,
+        level: &Level,
+        lanes: &mut ShadowLanes<R>,
+        budget: &mut TestBudget,
+    ) {
         let mut open = !lanes.blocked & ALL_LANES;
-        while open != 0 {
+        while open != 0 && !budget.spent() {
             let i = open.trailing_zeros() as usize;
             open &= open - 1;
             let origin = V3::<R>::new(lanes.origin[0][i], lanes.origin[1][i], lanes.origin[2][i]);
@@ -266,7 +305,7 @@ impl<R: Real> VoxelHashGrid<R> {
             let Some(wide) = Ray64::new(&ray) else {
                 continue;
             };
-            if self.any_hit_in(level, &wide, &ray, R::one(), &mut Mailbox::new()) {
+            if self.any_hit_in(level, &wide, &ray, R::one(), &mut Mailbox::new(), budget) {
                 lanes.blocked |= 1 << i;
             }
         }
@@ -274,8 +313,8 @@ impl<R: Real> VoxelHashGrid<R> {
 }
 
 /// The groups with an unblocked ray, one bit per group.
-fn open_groups<R: Real>(groups: &ShadowGroups<R>) -> u32 {
+fn open_groups<R: Real>(rays: &ShadowGroups<R>) -> u32 {
     (0..GROUPS).fold(0, |mask, g| {
-        mask | u32::from(groups[g].blocked != ALL_LANES) << g
+        mask | u32::from(rays.groups[g].blocked != ALL_LANES) << g
     })
 }
