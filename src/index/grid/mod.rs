@@ -132,6 +132,11 @@ impl Mailbox {
     }
 }
 
+/// What a walk spends its candidate tests from.
+pub(super) trait Tests {
+    fn spend(&mut self, tests: u64);
+}
+
 /// The candidate tests one call for many rays may still make (see
 /// [`Answered`]). A lane test of a group counts one, as does one ray's test.
 #[derive(Clone, Copy, Debug)]
@@ -144,20 +149,25 @@ impl TestBudget {
         TestBudget { left: tests }
     }
 
-    /// A budget a single ray's walk spends without ever running out.
-    fn unlimited() -> Self {
-        TestBudget { left: u64::MAX }
-    }
-
-    #[inline(always)]
-    pub(super) fn spend(&mut self, tests: u64) {
-        self.left = self.left.saturating_sub(tests);
-    }
-
     #[inline(always)]
     pub(super) fn spent(&self) -> bool {
         self.left == 0
     }
+}
+
+impl Tests for TestBudget {
+    #[inline(always)]
+    fn spend(&mut self, tests: u64) {
+        self.left = self.left.saturating_sub(tests);
+    }
+}
+
+/// What a ray traced on its own spends from: nothing is counted.
+struct Uncounted;
+
+impl Tests for Uncounted {
+    #[inline(always)]
+    fn spend(&mut self, _: u64) {}
 }
 
 impl<R: Real> VoxelHashGrid<R> {
@@ -228,7 +238,7 @@ impl<R: Real> VoxelHashGrid<R> {
 
 impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
     fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>> {
-        self.closest_hit_spending(ray, t_min, t_max, &mut TestBudget::unlimited())
+        self.closest_hit_spending(ray, t_min, t_max, &mut Uncounted)
     }
 
     fn closest_hits(
@@ -247,7 +257,7 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
     }
 
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
-        self.any_hit_spending(ray, t_max, &mut TestBudget::unlimited())
+        self.any_hit_spending(ray, t_max, &mut Uncounted)
     }
 }
 
@@ -259,7 +269,7 @@ impl<R: Real> VoxelHashGrid<R> {
         ray: &Ray<R>,
         t_min: R,
         t_max: R,
-        budget: &mut TestBudget,
+        budget: &mut impl Tests,
     ) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
         let mut best: Option<Hit<R>> = None;
@@ -305,7 +315,7 @@ impl<R: Real> VoxelHashGrid<R> {
     }
 
     /// [`SphereIndex::any_hit`], spending one of `budget` per test.
-    pub(super) fn any_hit_spending(&self, ray: &Ray<R>, t_max: R, budget: &mut TestBudget) -> bool {
+    pub(super) fn any_hit_spending(&self, ray: &Ray<R>, t_max: R, budget: &mut impl Tests) -> bool {
         let Some(wide) = Ray64::new(ray) else {
             return false;
         };
@@ -337,7 +347,7 @@ impl<R: Real> VoxelHashGrid<R> {
         ray: &Ray<R>,
         t_max: R,
         mailbox: &mut Mailbox,
-        budget: &mut TestBudget,
+        budget: &mut impl Tests,
     ) -> bool {
         let slack = level.slack / wide.length;
         let mut found = false;

@@ -12,7 +12,7 @@
 use super::cone::Cones;
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
-use super::{TestBudget, VoxelHashGrid};
+use super::{TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Answered, Hit};

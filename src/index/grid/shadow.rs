@@ -27,7 +27,7 @@ use super::cone::Cones;
 use super::packet::{groups_of, PacketMailbox, GROUPS, LANES, RAYS};
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
-use super::{Level, Mailbox, TestBudget, VoxelHashGrid};
+use super::{Level, Mailbox, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::Answered;
