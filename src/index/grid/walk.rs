@@ -6,9 +6,9 @@
 //! drift over a million cells. An axis the ray runs parallel to (d = ±0)
 //! never steps: its next crossing is +∞. Empty space is crossed a cube at
 //! a time: the empty groups of regions around the walk's one (as far as the
-//! level's proximity cloud says), an empty region (4×4×4 blocks) or an empty
-//! block in one step, the walk moving to the first cell beyond the cube
-//! along the ray.
+//! level's proximity cloud says), an empty region (4×4×4 blocks), an empty
+//! cube of 2×2×2 blocks in an occupied region, or an empty block in one
+//! step, the walk moving to the first cell beyond the cube along the ray.
 
 use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT};
 use super::{EmptySpace, Level};
@@ -230,8 +230,9 @@ impl Level {
     /// at cell `c`, or the empty cube around it to cross in one step. Empty
     /// space at three scales: the empty groups around `c`'s in the level's
     /// proximity cloud, a region (4×4×4 blocks) with no occupied block, and
-    /// an empty block of an occupied region, the last read from the
-    /// region's mask without probing the block table.
+    /// an empty block of an occupied region, alone or with the aligned cube
+    /// of 2×2×2 blocks around it, the last two read from the region's mask
+    /// without probing the block table.
     #[inline(always)]
     fn enter_block(
         &self,
@@ -254,7 +255,12 @@ impl Level {
             return Err(Empty::group(REGION_SHIFT));
         }
         if blocks >> cell_bit(b) & 1 == 0 {
-            return Err(Empty::group(BLOCK_SHIFT));
+            // The aligned 2×2×2 blocks around b in the region's mask (laid
+            // out as `cell_bit`): bits 0, 1, 4, 5, 16, 17, 20 and 21 moved
+            // to b's corner.
+            let corner = (b[0] & 2) | (b[1] & 2) << BLOCK_SHIFT | (b[2] & 2) << (2 * BLOCK_SHIFT);
+            let pair = 0x33_0033u64 << corner;
+            return Err(Empty::group(BLOCK_SHIFT + u32::from(blocks & pair == 0)));
         }
         Ok(self.table.get(key).unwrap_or_default())
     }
