@@ -119,6 +119,15 @@ pub(super) fn floor_to_int(x: f64) -> i64 {
     truncated - i64::from((truncated as f64) > x)
 }
 
+/// The bits of the aligned 2×2×2 cube around `c` in a 4×4×4 mask laid out
+/// as [`cell_bit`]: bits 0, 1, 4, 5, 16, 17, 20 and 21, moved to the cube's
+/// corner.
+#[inline(always)]
+fn pair_cube(c: [i64; 3]) -> u64 {
+    let corner = (c[0] & 2) | (c[1] & 2) << BLOCK_SHIFT | (c[2] & 2) << (2 * BLOCK_SHIFT);
+    0x33_0033u64 << corner
+}
+
 /// The axis whose next crossing comes first.
 #[inline(always)]
 fn first_axis(t: &[f64; 3]) -> usize {
@@ -255,12 +264,8 @@ impl Level {
             return Err(Empty::group(REGION_SHIFT));
         }
         if blocks >> cell_bit(b) & 1 == 0 {
-            // The aligned 2×2×2 blocks around b in the region's mask (laid
-            // out as `cell_bit`): bits 0, 1, 4, 5, 16, 17, 20 and 21 moved
-            // to b's corner.
-            let corner = (b[0] & 2) | (b[1] & 2) << BLOCK_SHIFT | (b[2] & 2) << (2 * BLOCK_SHIFT);
-            let pair = 0x33_0033u64 << corner;
-            return Err(Empty::group(BLOCK_SHIFT + u32::from(blocks & pair == 0)));
+            let cube_empty = blocks & pair_cube(b) == 0;
+            return Err(Empty::group(BLOCK_SHIFT + u32::from(cube_empty)));
         }
         Ok(self.table.get(key).unwrap_or_default())
     }
