@@ -10,7 +10,7 @@
 //! cube of 2×2×2 blocks in an occupied region, or an empty block in one
 //! step, the walk moving to the first cell beyond the cube along the ray.
 
-use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT};
+use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT, BLOCK_SIDE};
 use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
 use glam::DVec3;
@@ -54,6 +54,9 @@ struct Axes {
     /// +∞ where d = ±0 (the ray never crosses that axis's planes), else 0:
     /// added to a crossing's t, it spares a branch on the direction.
     never: [f64; 3],
+    /// The cell's place in its block (0 or 3) just after a step along the
+    /// axis has entered a new block.
+    block_entry: [i64; 3],
 }
 
 impl Axes {
@@ -63,6 +66,7 @@ impl Axes {
             up: ray.d.map(|d| (d > 0.0) as i64),
             inv: [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] }),
             never: ray.d.map(|d| if d == 0.0 { f64::INFINITY } else { 0.0 }),
+            block_entry: ray.d.map(|d| if d > 0.0 { 0 } else { BLOCK_SIDE - 1 }),
         }
     }
 }
@@ -205,32 +209,33 @@ impl Level {
             return self.walk_probing(ray, &axes, c, t_next, limit, visit);
         }
         let mut region = Cached::<u64>::new();
-        // The block the walk is in, once it is known to be occupied.
-        let mut block: Option<(BlockKey, Block)> = None;
+        // The occupied block the walk is in; None until it is looked up.
+        let mut block: Option<Block> = None;
         loop {
-            let b = c.map(|v| v >> BLOCK_SHIFT);
-            let key = block_key(b);
             let cells = match block {
-                Some((k, cells)) if k == key => cells,
-                _ => match self.enter_block(c, b, key, &mut region) {
-                    Ok(cells) => {
-                        block = Some((key, cells));
-                        cells
-                    }
-                    Err(empty) => {
-                        if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
-                            return;
+                Some(cells) => cells,
+                None => {
+                    let b = c.map(|v| v >> BLOCK_SHIFT);
+                    match self.enter_block(c, b, block_key(b), &mut region) {
+                        Ok(cells) => *block.insert(cells),
+                        Err(empty) => {
+                            if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
+                                return;
+                            }
+                            continue;
                         }
-                        continue;
                     }
-                },
+                }
             };
             if cells.holds(cell_bit(c)) {
                 let wanted = visit(self.candidates(cells.cell_index(cell_bit(c))));
                 limit = limit.min(wanted);
             }
-            if !self.step(ray, &axes, &mut c, &mut t_next, limit) {
+            let Some(a) = self.step(ray, &axes, &mut c, &mut t_next, limit) else {
                 return;
+            };
+            if c[a] & (BLOCK_SIDE - 1) == axes.block_entry[a] {
+                block = None;
             }
         }
     }
@@ -286,14 +291,15 @@ impl Level {
                     limit = limit.min(visit(self.candidates(b.cell_index(cell_bit(c)))));
                 }
             }
-            if !self.step(ray, axes, &mut c, &mut t_next, limit) {
+            if self.step(ray, axes, &mut c, &mut t_next, limit).is_none() {
                 return;
             }
         }
     }
 
-    /// Moves to the next cell along the ray; false when it starts beyond
-    /// `limit` or lies outside the level.
+    /// Moves to the next cell along the ray, across a plane of the axis it
+    /// returns; None when that cell starts beyond `limit` or lies outside
+    /// the level.
     #[inline(always)]
     fn step(
         &self,
@@ -302,17 +308,17 @@ impl Level {
         c: &mut [i64; 3],
         t_next: &mut [f64; 3],
         limit: f64,
-    ) -> bool {
+    ) -> Option<usize> {
         let a = first_axis(t_next);
         if t_next[a] > limit || t_next[a] == f64::INFINITY {
-            return false;
+            return None;
         }
         c[a] += axes.step[a];
         if c[a] < 0 || c[a] >= self.dims[a] {
-            return false;
+            return None;
         }
         t_next[a] = self.next_crossing(ray, axes, a, c[a]);
-        true
+        Some(a)
     }
 
     /// Moves from the empty cube around cell `c` to the first cell the ray
