@@ -72,6 +72,7 @@ pub mod index;
 pub mod limits;
 pub mod names;
 pub mod output;
+pub mod remote;
 pub mod render;
 pub mod rng;
 pub mod scene;
