@@ -149,7 +149,9 @@ fn drain_on_signal(
         );
         std::process::exit(1);
     }
+    // Sent before the service stops, so that `run` finds it once it returns.
     let _ = drained.send((signal, outcome));
+    drainer.stop();
 }
 
 /// One line on stdout, flushed: scripts read these as they come.

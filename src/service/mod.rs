@@ -331,10 +331,9 @@ pub struct Drained {
 
 impl Drainer {
     /// From now on `/healthz` and every new render are answered 503
-    /// (`draining`) and no connection is kept alive; once the renders
-    /// admitted before have finished, or `timeout` has passed, the service
-    /// stops accepting, and [`Server::run`] returns when the connections
-    /// still answering have written their responses.
+    /// (`draining`) and no connection is kept alive. Returns once the
+    /// renders admitted before have finished, or `timeout` has passed;
+    /// [`Drainer::stop`] then ends the service.
     pub fn drain(&self, timeout: Duration) -> Drained {
         let started = Instant::now();
         self.state.draining.store(true, Ordering::Relaxed);
@@ -344,12 +343,17 @@ impl Drainer {
             thread::sleep(DRAIN_POLL);
             left = self.admitted();
         }
-        stop_accepting(&self.state, self.addr);
         Drained {
             admitted,
             left,
             elapsed: started.elapsed(),
         }
+    }
+
+    /// Stops accepting; [`Server::run`] returns once the connections still
+    /// answering have written their responses.
+    pub fn stop(&self) {
+        stop_accepting(&self.state, self.addr);
     }
 
     fn admitted(&self) -> usize {
