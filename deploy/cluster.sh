@@ -105,7 +105,7 @@ down() {
   if [ -s "$DIR/nginx.pid" ]; then
     pids+=("$(cat "$DIR/nginx.pid")")
     # Its worker processes are its children; QUIT lets them finish.
-    pids+=($(pgrep -P "${pids[0]}" || true))
+    pids+=($(cat "/proc/${pids[0]}/task/${pids[0]}/children" 2>/dev/null || true))
     kill -QUIT "${pids[0]}" 2>/dev/null || true
   fi
   if [ -s "$DIR/workers" ]; then
