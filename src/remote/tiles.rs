@@ -5,11 +5,14 @@ use crate::render::Region;
 /// About `n` tiles covering a `width` × `height` image exactly once, row by
 /// row: a grid of columns and rows chosen so that tiles are near square
 /// (which keeps the eye-ray packets inside a tile full), with edges split
-/// as evenly as whole pixels allow. Fewer when the image has fewer pixels.
+/// as evenly as whole pixels allow: about `n`, never more than twice as
+/// many, and fewer
+/// when the image has fewer pixels.
 pub fn plan(width: u32, height: u32, n: u32) -> Vec<Region> {
     let n = f64::from(n.max(1));
     let aspect = f64::from(width) / f64::from(height);
-    let columns = ((n * aspect).sqrt().round() as u32).clamp(1, width);
+    // Never more columns than tiles: a wide, short image gets a row of them.
+    let columns = ((n * aspect).sqrt().round() as u32).clamp(1, width.min(n as u32));
     let rows = ((n / f64::from(columns)).round() as u32).clamp(1, height);
     let cut =
         |i: u32, parts: u32, side: u32| (u64::from(i) * u64::from(side) / u64::from(parts)) as u32;
