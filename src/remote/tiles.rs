@@ -5,9 +5,8 @@ use crate::render::Region;
 /// About `n` tiles covering a `width` × `height` image exactly once, row by
 /// row: a grid of columns and rows chosen so that tiles are near square
 /// (which keeps the eye-ray packets inside a tile full), with edges split
-/// as evenly as whole pixels allow: about `n`, never more than twice as
-/// many, and fewer
-/// when the image has fewer pixels.
+/// as evenly as whole pixels allow. About `n` of them, never more than
+/// twice as many, and fewer when the image has fewer pixels.
 pub fn plan(width: u32, height: u32, n: u32) -> Vec<Region> {
     let n = f64::from(n.max(1));
     let aspect = f64::from(width) / f64::from(height);
