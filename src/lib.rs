@@ -64,7 +64,8 @@
 //!
 //! The service's render path without HTTP is [`service::render_request`]:
 //! the query string and the scene text in, the encoded image out, refused
-//! exactly as `POST /render` refuses.
+//! exactly as `POST /render` refuses. [`remote::render`] renders a frame in
+//! tiles on such services (`POST /render?region=…`) and stitches them.
 
 pub mod cli;
 pub mod geometry;
@@ -72,6 +73,7 @@ pub mod index;
 pub mod limits;
 pub mod names;
 pub mod output;
+pub mod remote;
 pub mod render;
 pub mod rng;
 pub mod scene;

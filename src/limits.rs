@@ -130,3 +130,34 @@ pub const DEFAULT_BODY_TIMEOUT_MS: u64 = 30_000;
 pub const DEFAULT_WRITE_TIMEOUT_MS: u64 = 30_000;
 /// What `Retry-After` tells a client turned away by a full queue, in seconds.
 pub const RETRY_AFTER_S: u32 = 1;
+
+// ---- Tiled remote renders (`voxtrace render --remote`) and draining. ----
+
+/// Tiles a remote render is split into unless told otherwise: enough for a
+/// handful of workers to share a frame and for a slow one to matter little.
+pub const DEFAULT_TILES: u32 = 16;
+/// Most tiles one remote render may ask for: each costs the workers a parse
+/// and an index build of the whole scene.
+pub const MAX_TILES: u32 = 4_096;
+/// Tile requests in flight at once unless told otherwise.
+pub const DEFAULT_TILES_IN_FLIGHT: usize = 8;
+/// Most tile requests in flight at once: one client thread and connection each.
+pub const MAX_TILES_IN_FLIGHT: usize = 256;
+/// How long one tile request may take, from connecting to its last byte:
+/// a worker's longest queue wait, render budget and response write
+/// ([`DEFAULT_RENDER_TIMEOUT_MS`] and [`DEFAULT_WRITE_TIMEOUT_MS`]) end
+/// within it. Past it the tile is sent again.
+pub const DEFAULT_TILE_TIMEOUT_MS: u64 = 2 * DEFAULT_RENDER_TIMEOUT_MS + DEFAULT_WRITE_TIMEOUT_MS;
+/// Attempts per tile before the render gives up: a render is a pure
+/// function, so sending it again is safe, but a tile that fails this often
+/// points at the cluster, not at bad luck.
+pub const MAX_TILE_ATTEMPTS: u32 = 5;
+/// Wait before a failed tile is sent again, times its attempt number.
+pub const TILE_RETRY_BACKOFF_MS: u64 = 100;
+/// Longest wait a worker's `Retry-After` can impose on a tile.
+pub const MAX_TILE_RETRY_WAIT_MS: u64 = 5_000;
+/// Largest error body read from a worker (its message, text or JSON).
+pub const MAX_REMOTE_ERROR_BYTES: usize = 64 * 1024;
+/// How long a worker told to stop (SIGTERM, SIGINT) may take to finish the
+/// renders it has admitted: its queue wait, render and write all fit.
+pub const DEFAULT_DRAIN_TIMEOUT_MS: u64 = DEFAULT_TILE_TIMEOUT_MS;

@@ -6,11 +6,14 @@ mod choice;
 mod gen;
 mod load;
 mod output_path;
+mod progress;
 mod refusal;
+mod remote;
 mod render;
 mod report;
 mod scene_input;
 mod serve;
+mod signals;
 
 use crate::threads::Threads;
 use clap::{Parser, Subcommand};
@@ -77,6 +80,7 @@ pub enum CliError {
     Duration(crate::tools::load::DurationError),
     Load(crate::tools::load::LoadError),
     Serve(crate::service::BindError),
+    Remote(crate::remote::RemoteError),
     /// The service stopped serving.
     Serving(std::io::Error),
 }
@@ -94,7 +98,10 @@ impl CliError {
             CliError::Url(_) | CliError::Duration(_) => true,
             CliError::Read { .. } | CliError::Write { .. } | CliError::Serving(_) => false,
             CliError::Encode(_) | CliError::Json(_) | CliError::Pool(_) => false,
-            CliError::Render(e) => matches!(e, RenderError::BadOption(_)),
+            CliError::Render(e) => {
+                matches!(e, RenderError::BadOption(_) | RenderError::BadRegion(_))
+            }
+            CliError::Remote(e) => e.is_input_error(),
             CliError::Bench(e) => matches!(e, BenchError::Scene(..)),
             CliError::Report(_) => false,
             CliError::Load(e) => match e {
@@ -130,6 +137,7 @@ impl fmt::Display for CliError {
             CliError::Duration(e) => write!(f, "{e}"),
             CliError::Load(e) => write!(f, "{e}"),
             CliError::Serve(e) => write!(f, "{e}"),
+            CliError::Remote(e) => write!(f, "{e}"),
             CliError::Serving(e) => write!(f, "the service stopped: {e}"),
         }
     }

@@ -2,42 +2,43 @@
 
 use super::choice::choice;
 use super::output_path::{refuse_overwriting, refuse_terminal, Destination};
+use super::progress::Progress;
 use super::scene_input::read_scene;
 use super::CliError;
 use crate::limits;
 use crate::output::Format;
-use crate::render::{render_scene, IndexKind, RenderOptions, Rendered, SpecularModel};
+use crate::output::Image;
+use crate::render::{render_scene, IndexKind, Region, RenderOptions, Rendered, SpecularModel};
 use crate::threads::Threads;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::{IsTerminal, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
     /// The scene file (either dialect).
-    scene: PathBuf,
+    pub(super) scene: PathBuf,
     /// Output file; `.png` writes PNG, anything else binary PPM, `-` PNG to
     /// stdout (not to a terminal). Default: the scene's OUTPUT name, reduced
     /// to a plain file name ending in `.ppm` or `.png`, or `<scene>.ppm`, in
     /// the current directory. The scene file itself is never written over.
     #[arg(short, long)]
-    output: Option<PathBuf>,
+    pub(super) output: Option<PathBuf>,
     /// Largest scene file to read, in bytes.
     #[arg(long, value_name = "BYTES", default_value_t = limits::DEFAULT_MAX_SCENE_BYTES)]
-    max_scene_bytes: u64,
+    pub(super) max_scene_bytes: u64,
     /// Samples per pixel (1 = the pixel's corner, as the course did; more = stratified, jittered).
     #[arg(long, default_value_t = 1)]
-    spp: u32,
+    pub(super) spp: u32,
     /// Bounces of reflection/refraction (default: 3 classic, 16 browser dialect).
     #[arg(long)]
-    depth: Option<u32>,
+    pub(super) depth: Option<u32>,
     /// Render threads, at least 1 (default: all cores). The image does not depend on it.
     #[arg(long)]
     threads: Option<Threads>,
     /// Print parse/build/render times and rays by kind on stderr.
     #[arg(long)]
-    stats: bool,
+    pub(super) stats: bool,
     /// Candidate search.
     #[arg(long, value_parser = choice(index_help), default_value_t = IndexKind::default())]
     index: IndexKind,
@@ -47,6 +48,16 @@ pub struct RenderArgs {
     /// Stop recursing once a ray's weight cannot change the 8-bit output.
     #[arg(long)]
     adaptive: bool,
+    /// Render only pixels X0..X1 × Y0..Y1 (origin top left, X1 and Y1
+    /// exclusive): the same bytes as that crop of the whole image.
+    #[arg(long, value_name = "X0,Y0,X1,Y1", conflicts_with = "remote")]
+    region: Option<Region>,
+    /// Render on a service (or a load balancer in front of several) at this
+    /// http:// URL, in tiles; the image is the same as a local render's.
+    #[arg(long, value_name = "URL", conflicts_with_all = ["index", "specular", "adaptive"])]
+    remote: Option<String>,
+    #[command(flatten)]
+    pub(super) tiling: super::remote::TilingArgs,
 }
 
 fn index_help(index: IndexKind) -> &'static str {
@@ -71,6 +82,9 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     if args.output.as_deref() == Some(Path::new("-")) {
         refuse_terminal(&Destination::Stdout)?;
     }
+    if let Some(url) = &args.remote {
+        return super::remote::run(&args, url);
+    }
     let pool = super::thread_pool(args.threads)?;
     let started = Instant::now();
     let scene = pool.install(|| read_scene(&args.scene, args.max_scene_bytes))?;
@@ -84,25 +98,28 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         adaptive_cutoff: args.adaptive,
         index: args.index,
         deadline: None,
+        region: args.region,
     };
-    let progress = RowProgress::new(scene.camera.height);
+    let rows = args.region.map_or(scene.camera.height, |r| r.height());
+    let progress = Progress::new(rows, "rows");
     let rendered = pool
         .install(|| render_scene(&scene, &options, &|rows| progress.update(rows)))
         .map_err(CliError::Render)?;
     progress.finish();
-    write_image(&rendered, &destination)?;
+    write_image(&rendered.image, &destination)?;
     if args.stats {
         print_stats(&rendered, parse_time, pool.current_num_threads());
     }
     Ok(())
 }
 
-fn write_image(rendered: &Rendered, destination: &Destination) -> Result<(), CliError> {
+/// Encodes `image` as `destination` asks (PNG for stdout or `.png`) and writes it.
+pub(super) fn write_image(image: &Image, destination: &Destination) -> Result<(), CliError> {
     let format = match destination {
         Destination::Stdout => Format::Png,
         Destination::File(path) => Format::from_path(path),
     };
-    let bytes = rendered.image.encode(format).map_err(CliError::Encode)?;
+    let bytes = image.encode(format).map_err(CliError::Encode)?;
     let (result, name) = match destination {
         Destination::Stdout => (
             std::io::stdout().lock().write_all(&bytes),
@@ -134,41 +151,4 @@ fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {
         p.eye, p.shadow
     );
     eprintln!("speed   {:10.2} Mrays/s", s.mrays_per_second());
-}
-
-/// A progress bar on stderr, shown only on a terminal and only once the
-/// render has taken more than a second.
-struct RowProgress {
-    bar: ProgressBar,
-    started: Instant,
-    terminal: bool,
-}
-
-impl RowProgress {
-    fn new(rows: u32) -> Self {
-        let bar =
-            ProgressBar::with_draw_target(Some(u64::from(rows)), ProgressDrawTarget::hidden());
-        if let Ok(style) =
-            ProgressStyle::with_template("{bar:40} {pos}/{len} rows  {elapsed} (eta {eta})")
-        {
-            bar.set_style(style);
-        }
-        RowProgress {
-            bar,
-            started: Instant::now(),
-            terminal: std::io::stderr().is_terminal(),
-        }
-    }
-
-    fn update(&self, rows: u32) {
-        if self.terminal && self.bar.is_hidden() && self.started.elapsed() > Duration::from_secs(1)
-        {
-            self.bar.set_draw_target(ProgressDrawTarget::stderr());
-        }
-        self.bar.set_position(u64::from(rows));
-    }
-
-    fn finish(&self) {
-        self.bar.finish_and_clear();
-    }
 }

@@ -37,3 +37,31 @@ fn too_large(display: &str, limit: u64) -> CliError {
         limit,
     })
 }
+
+/// Reads the scene at `path` whole, at most `max_bytes` of it, and parses
+/// it: the text to send on as it is, and what it says.
+pub fn read_scene_text(path: &Path, max_bytes: u64) -> Result<(Vec<u8>, Scene), CliError> {
+    use std::io::Read;
+    let display = path.display().to_string();
+    let cannot_read = |error| CliError::Read {
+        what: display.clone(),
+        error,
+    };
+    let file = File::open(path).map_err(cannot_read)?;
+    let metadata = file.metadata().map_err(cannot_read)?;
+    if metadata.is_file() && metadata.len() > max_bytes {
+        return Err(too_large(&display, max_bytes));
+    }
+    let mut text = Vec::new();
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut text)
+        .map_err(cannot_read)?;
+    if text.len() as u64 > max_bytes {
+        return Err(too_large(&display, max_bytes));
+    }
+    let scene = scene::parse(&text).map_err(|error| CliError::Scene {
+        path: display.clone(),
+        error,
+    })?;
+    Ok((text, scene))
+}

@@ -1,10 +1,12 @@
 //! `voxtrace serve`.
 
+use super::signals::StopSignals;
 use super::CliError;
 use crate::limits;
-use crate::service::{Server, ServiceConfig};
+use crate::service::{Drained, Drainer, Server, ServiceConfig};
 use crate::threads::Threads;
 use std::io::Write;
+use std::sync::mpsc;
 use std::time::Duration;
 
 #[derive(clap::Args)]
@@ -65,6 +67,14 @@ pub struct ServeArgs {
     /// Render threads, at least 1 (default: all cores).
     #[arg(long)]
     threads: Option<Threads>,
+    /// The name sent in the X-Worker header of every image (default: the
+    /// address the service listens on).
+    #[arg(long)]
+    worker_name: Option<String>,
+    /// On SIGTERM or SIGINT, how long to wait for the admitted renders to
+    /// finish before exiting regardless (exit code 1), in milliseconds.
+    #[arg(long, default_value_t = limits::DEFAULT_DRAIN_TIMEOUT_MS)]
+    drain_timeout_ms: u64,
 }
 
 impl ServeArgs {
@@ -88,20 +98,69 @@ impl ServeArgs {
             body_timeout: ms(self.body_timeout_ms),
             write_timeout: ms(self.write_timeout_ms),
             threads: self.threads.unwrap_or_default(),
+            name: self.worker_name.clone(),
         }
     }
 }
 
 pub fn run(args: ServeArgs) -> Result<(), CliError> {
+    // Before the server starts its threads, so that they inherit the mask.
+    let signals = StopSignals::block();
     let server = Server::bind(args.config()).map_err(CliError::Serve)?;
     let addr = server.local_addr().map_err(CliError::Serving)?;
+    say(&format!("listening on http://{addr}"))?;
+    let (drained, on_drained) = mpsc::channel();
+    if let Some(signals) = signals {
+        let drainer = server.drainer().map_err(CliError::Serving)?;
+        let timeout = Duration::from_millis(args.drain_timeout_ms);
+        std::thread::Builder::new()
+            .name("voxtrace-signals".into())
+            .spawn(move || drain_on_signal(&signals, &drainer, timeout, &drained))
+            .map_err(CliError::Serving)?;
+    }
+    server.run().map_err(CliError::Serving)?;
+    if let Ok((signal, drained)) = on_drained.try_recv() {
+        say(&format!(
+            "stopped on {signal}: drained, {} admitted renders finished in {} ms",
+            drained.admitted,
+            drained.elapsed.as_millis()
+        ))?;
+    }
+    Ok(())
+}
+
+/// Waits for a stop signal, then drains the service. A drain that runs out
+/// of time ends the process at once: the renders still running are cut off,
+/// and the exit code (1) says so.
+fn drain_on_signal(
+    signals: &StopSignals,
+    drainer: &Drainer,
+    timeout: Duration,
+    drained: &mpsc::Sender<(&'static str, Drained)>,
+) {
+    let signal = signals.wait();
+    let _ = say(&format!("{signal}: draining (new renders get 503)"));
+    let outcome = drainer.drain(timeout);
+    if outcome.left > 0 {
+        eprintln!(
+            "voxtrace: {signal}: {} renders still running after {} ms; exiting without them",
+            outcome.left,
+            timeout.as_millis()
+        );
+        std::process::exit(1);
+    }
+    // Sent before the service stops, so that `run` finds it once it returns.
+    let _ = drained.send((signal, outcome));
+    drainer.stop();
+}
+
+/// One line on stdout, flushed: scripts read these as they come.
+fn say(line: &str) -> Result<(), CliError> {
     let mut stdout = std::io::stdout().lock();
-    writeln!(stdout, "listening on http://{addr}")
+    writeln!(stdout, "{line}")
         .and_then(|()| stdout.flush())
         .map_err(|error| CliError::Write {
             what: "standard output".into(),
             error,
-        })?;
-    drop(stdout);
-    server.run().map_err(CliError::Serving)
+        })
 }

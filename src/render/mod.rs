@@ -3,10 +3,12 @@
 
 mod camera;
 mod deadline;
+mod region;
 mod shading;
 
 pub use camera::PixelSampler;
 pub use deadline::{CancelToken, Deadline};
+pub use region::{Region, RegionError};
 
 use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{Answered, BruteForce, SphereIndex, VoxelHashGrid};
@@ -55,6 +57,8 @@ pub struct RenderOptions {
     /// Give up once this instant has passed ([`RenderError::TimedOut`]) or
     /// its token is cancelled ([`RenderError::Cancelled`]).
     pub deadline: Option<Deadline>,
+    /// Render only this rectangle of the image (`None`: all of it).
+    pub region: Option<Region>,
 }
 
 impl Default for RenderOptions {
@@ -66,6 +70,7 @@ impl Default for RenderOptions {
             adaptive_cutoff: false,
             index: IndexKind::default(),
             deadline: None,
+            region: None,
         }
     }
 }
@@ -135,6 +140,8 @@ pub enum RenderError {
     Cancelled,
     /// An option outside what the renderer accepts.
     BadOption(String),
+    /// A region that is empty or not inside the image.
+    BadRegion(RegionError),
 }
 
 impl fmt::Display for RenderError {
@@ -143,6 +150,7 @@ impl fmt::Display for RenderError {
             RenderError::TimedOut => write!(f, "the render exceeded its time budget"),
             RenderError::Cancelled => write!(f, "the render was cancelled"),
             RenderError::BadOption(why) => write!(f, "{why}"),
+            RenderError::BadRegion(why) => write!(f, "{why}"),
         }
     }
 }
@@ -280,18 +288,29 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
     stop: &Stop,
 ) -> Result<Rendered, RenderError> {
     let started = Instant::now();
+    let region = region_of(scene, options)?;
     let tracer = Tracer::new(scene, shapes, index, options, stop);
     let sampler = PixelSampler::new(&scene.camera, options.spp);
-    let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
-    let mut rgb = vec![0u8; width * height * 3];
+    let width = region.width() as usize;
+    let mut rgb = vec![0u8; width * region.height() as usize * 3];
     let totals = Mutex::new(BandCounts::default());
     let rows_done = AtomicU32::new(0);
     rgb.par_chunks_mut(width * 3 * BAND_ROWS as usize)
         .enumerate()
         .for_each(|(band, out)| {
             let mut counts = BandCounts::default();
-            let rows = band as u32 * BAND_ROWS..((band as u32 + 1) * BAND_ROWS).min(height as u32);
-            render_band(&tracer, &sampler, rows.clone(), out, &mut counts, stop);
+            let start = region.y0 + band as u32 * BAND_ROWS;
+            let rows = start..(start + BAND_ROWS).min(region.y1);
+            let columns = region.columns();
+            render_band(
+                &tracer,
+                &sampler,
+                columns,
+                rows.clone(),
+                out,
+                &mut counts,
+                stop,
+            );
             // A poisoned lock only means another band panicked, which
             // propagates anyway; its counts are still sound to add to.
             let mut totals = totals.lock().unwrap_or_else(|e| e.into_inner());
@@ -307,7 +326,7 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
     }
     let totals = totals.into_inner().unwrap_or_else(|e| e.into_inner());
     Ok(Rendered {
-        image: Image::from_rgb(scene.camera.width, scene.camera.height, rgb),
+        image: Image::from_rgb(region.width(), region.height(), rgb),
         stats: RenderStats {
             rays: totals.rays,
             in_packets: totals.in_packets,
@@ -315,6 +334,17 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
             render_time: started.elapsed(),
         },
     })
+}
+
+/// The rectangle `options` asks for, checked against the image; the whole
+/// image if none.
+fn region_of(scene: &Scene, options: &RenderOptions) -> Result<Region, RenderError> {
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    options
+        .region
+        .unwrap_or(Region::whole(width, height))
+        .within(width, height)
+        .map_err(RenderError::BadRegion)
 }
 
 /// Side of the square tiles of pixels whose eye rays are traced together:
@@ -339,30 +369,32 @@ pub const BLOCK_COLUMNS: u32 = BAND_ROWS;
 /// spheres one fetches are still in cache for the next, a tile row above or
 /// below included; and each run of [`QUARTER`]² pixels is a compact square.
 pub fn tiles(width: u32, rows: std::ops::Range<u32>) -> impl Iterator<Item = Vec<(u32, u32)>> {
-    tile_blocks(width, rows).flatten()
+    tile_blocks(0..width, rows).flatten()
 }
 
 /// The tiles of [`tiles`], block by block: each item is the tiles of one
 /// block of [`BLOCK_COLUMNS`] columns of the band, whose shadow rays are
-/// traced together.
+/// traced together. `columns` are the image columns rendered (all of them,
+/// or a region's).
 pub fn tile_blocks(
-    width: u32,
+    columns: std::ops::Range<u32>,
     rows: std::ops::Range<u32>,
 ) -> impl Iterator<Item = Vec<Vec<(u32, u32)>>> {
-    (0..width).step_by(BLOCK_COLUMNS as usize).map(move |x0| {
+    let end = columns.end;
+    columns.step_by(BLOCK_COLUMNS as usize).map(move |x0| {
         rows.clone()
             .step_by(TILE as usize)
             .flat_map(|y0| {
-                (x0..(x0 + BLOCK_COLUMNS).min(width))
+                (x0..(x0 + BLOCK_COLUMNS).min(end))
                     .step_by(TILE as usize)
-                    .map(move |t0| tile_pixels(t0, y0, width, rows.end))
+                    .map(move |t0| tile_pixels(t0, y0, end, rows.end))
             })
             .collect()
     })
 }
 
 /// The pixels of the tile whose top-left corner (lowest column and row) is
-/// (x0, y0), quarter by quarter, clipped to `width` columns and rows below `end`.
+/// (x0, y0), quarter by quarter, clipped to columns below `width` and rows below `end`.
 fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
     let mut pixels = Vec::with_capacity((TILE * TILE) as usize);
     for (qx, qy) in [(0, 0), (QUARTER, 0), (0, QUARTER), (QUARTER, QUARTER)] {
@@ -381,7 +413,7 @@ struct BandCounts {
     in_packets: RayCounts,
 }
 
-/// Renders the band of rows `rows` into `out`, block by block and tile by
+/// Renders the band of rows `rows`, columns `columns`, into `out`, block by block and tile by
 /// tile (see [`tile_blocks`]), until `stop` says to stop. A tile's eye rays
 /// go to the index together, sample by sample across its pixels
 /// (neighbouring rays, which a packet walks at once); then the shadow rays
@@ -391,14 +423,15 @@ struct BandCounts {
 fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
     sampler: &PixelSampler,
+    columns: std::ops::Range<u32>,
     rows: std::ops::Range<u32>,
     out: &mut [u8],
     counts: &mut BandCounts,
     stop: &Stop,
 ) {
-    let width = (out.len() / 3 / rows.len()) as u32;
+    let (x0, width) = (columns.start, columns.len() as u32);
     let mut block = BlockRays::default();
-    for tiles in tile_blocks(width, rows.clone()) {
+    for tiles in tile_blocks(columns, rows.clone()) {
         block.aim(sampler, &tiles);
         if !block.trace(tracer, counts, stop) {
             return;
@@ -411,7 +444,7 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
                 let samples = (0..sampler.spp() as usize).map(|s| start + s * tile.len() + p);
                 let color =
                     sampler.combine(samples.map(|i| block.shade(tracer, i, &mut counts.rays)));
-                let at = (((y - rows.start) * width + x) * 3) as usize;
+                let at = (((y - rows.start) * width + x - x0) * 3) as usize;
                 out[at..at + 3].copy_from_slice(&to_bytes(color));
             }
         }

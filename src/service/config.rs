@@ -32,6 +32,9 @@ pub struct ServiceConfig {
     pub write_timeout: Duration,
     /// Render threads.
     pub threads: Threads,
+    /// What the service calls itself in the `X-Worker` header of every
+    /// image; `None`: the address it listens on.
+    pub name: Option<String>,
 }
 
 impl Default for ServiceConfig {
@@ -55,6 +58,7 @@ impl Default for ServiceConfig {
             body_timeout: ms(limits::DEFAULT_BODY_TIMEOUT_MS),
             write_timeout: ms(limits::DEFAULT_WRITE_TIMEOUT_MS),
             threads: Threads::AllCores,
+            name: None,
         }
     }
 }

@@ -137,7 +137,7 @@ fn answer(
         }
         Step::Reply { response, keep } => {
             state.metrics.response(route, &response);
-            let keep = keep && head.wants_keep_alive() && !state.stopping();
+            let keep = keep && head.wants_keep_alive() && !state.stopping() && !state.draining();
             let written = write_response(state, conn, &response, head.method == "HEAD", keep);
             written.is_ok() && keep
         }

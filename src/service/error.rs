@@ -72,6 +72,9 @@ pub enum ApiErrorKind {
     PeerLimit {
         max: usize,
     },
+    /// The service is draining before it stops: it finishes what it has
+    /// admitted and takes nothing new.
+    Draining,
     /// The render ran out of its time budget and was stopped.
     TimeBudget {
         budget_ms: u128,
@@ -98,7 +101,8 @@ impl ApiErrorKind {
             | SceneMemory { .. }
             | ResponseMemory { .. }
             | ConnectionLimit { .. }
-            | PeerLimit { .. } => 503,
+            | PeerLimit { .. }
+            | Draining => 503,
             // Its own status: a client can tell "the scene costs more time
             // than this service gives" from a limit refusal or a busy
             // service without reading the body.
@@ -127,6 +131,7 @@ impl ApiErrorKind {
             ResponseMemory { .. } => "response_memory",
             ConnectionLimit { .. } => "connection_limit",
             PeerLimit { .. } => "peer_limit",
+            Draining => "draining",
             TimeBudget { .. } => "time_budget",
         }
     }
@@ -183,6 +188,10 @@ impl fmt::Display for ApiErrorKind {
             PeerLimit { max } => write!(
                 f,
                 "this client has too many connections open (at most {max} per address)"
+            ),
+            Draining => write!(
+                f,
+                "this worker is stopping and takes no new renders; send the request elsewhere"
             ),
             TimeBudget {
                 budget_ms,
@@ -295,6 +304,7 @@ mod tests {
             ResponseMemory { bytes: 1 },
             ConnectionLimit { max: 1 },
             PeerLimit { max: 1 },
+            Draining,
             TimeBudget {
                 budget_ms: 1,
                 elapsed_ms: 2,

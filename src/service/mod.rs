@@ -14,7 +14,10 @@
 //! before they are allocated ([`memory_budget`]); one peer holds at most its
 //! share of the connections, and a reserve keeps `/healthz` answered
 //! ([`registry`]). Once the service is quiet, the memory its requests freed
-//! is given back to the system ([`memory`]).
+//! is given back to the system ([`memory`]). Told to stop ([`Drainer`]), it
+//! first drains: it answers `/healthz` and new renders 503, so a load
+//! balancer sends work elsewhere, finishes every render it has admitted,
+//! and only then stops accepting.
 
 mod admission;
 mod assets;
@@ -64,13 +67,24 @@ pub(crate) struct State {
     pool: rayon::ThreadPool,
     connections: Registry,
     stopping: AtomicBool,
+    draining: AtomicBool,
+    /// The `X-Worker` name.
+    worker: String,
 }
 
 impl State {
     fn stopping(&self) -> bool {
         self.stopping.load(Ordering::Relaxed)
     }
+
+    fn draining(&self) -> bool {
+        self.draining.load(Ordering::Relaxed)
+    }
 }
+
+/// How often a drain looks whether the admitted renders are done. The
+/// drain's own end is its deadline; this only bounds how late it notices.
+const DRAIN_POLL: Duration = Duration::from_millis(10);
 
 /// A bound, not yet running service.
 pub struct Server {
@@ -86,6 +100,9 @@ impl Server {
         let addr = config.socket_addr()?;
         let listener =
             TcpListener::bind(addr).map_err(|source| BindError::Listen { addr, source })?;
+        let bound = listener
+            .local_addr()
+            .map_err(|source| BindError::Listen { addr, source })?;
         let pool = threads::pool(config.threads).map_err(BindError::Pool)?;
         // Measured once the pool's threads exist: what the service holds idle.
         let baseline = memory_budget::resident_bytes().unwrap_or(0);
@@ -95,11 +112,13 @@ impl Server {
             admission: Admission::new(config.concurrent_renders, config.queue),
             bodies: BodyBudget::new(config.body_memory, &memory),
             memory,
-            config,
+            config: config.clone(),
             metrics: Metrics::default(),
             pool,
             connections: Registry::default(),
             stopping: AtomicBool::new(false),
+            draining: AtomicBool::new(false),
+            worker: config.name.clone().unwrap_or_else(|| bound.to_string()),
         };
         Ok(Server {
             listener,
@@ -169,6 +188,15 @@ impl Server {
             drop(state.connections.registration(id));
             turn_away(state, &stream, over_limit(&state.config, Over::Total));
         }
+    }
+
+    /// A handle that drains and stops the service from another thread,
+    /// while [`Server::run`] serves on this one.
+    pub fn drainer(&self) -> io::Result<Drainer> {
+        Ok(Drainer {
+            state: Arc::clone(&self.state),
+            addr: self.local_addr()?,
+        })
     }
 
     /// Runs the service on its own thread.
@@ -251,14 +279,16 @@ impl ServerHandle {
         self.shut_down();
     }
 
-    fn shut_down(&mut self) {
-        self.state.stopping.store(true, Ordering::Relaxed);
-        // Wake the acceptor, blocked in accept(), with a connection of our own.
-        let mut wake = self.addr;
-        if wake.ip().is_unspecified() {
-            wake.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
+    /// The handle's [`Drainer`].
+    pub fn drainer(&self) -> Drainer {
+        Drainer {
+            state: Arc::clone(&self.state),
+            addr: self.addr,
         }
-        let _ = TcpStream::connect_timeout(&wake, Duration::from_secs(1));
+    }
+
+    fn shut_down(&mut self) {
+        stop_accepting(&self.state, self.addr);
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }
@@ -268,5 +298,66 @@ impl ServerHandle {
 impl Drop for ServerHandle {
     fn drop(&mut self) {
         self.shut_down();
+    }
+}
+
+/// Tells the acceptor to stop, and wakes it, blocked in accept(), with a
+/// connection of our own.
+fn stop_accepting(state: &State, addr: SocketAddr) {
+    state.stopping.store(true, Ordering::Relaxed);
+    let mut wake = addr;
+    if wake.ip().is_unspecified() {
+        wake.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
+    }
+    let _ = TcpStream::connect_timeout(&wake, Duration::from_secs(1));
+}
+
+/// Drains a running service and then stops it.
+#[derive(Clone)]
+pub struct Drainer {
+    state: Arc<State>,
+    addr: SocketAddr,
+}
+
+/// How a drain went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Drained {
+    /// Renders admitted (running or queued) when the drain began.
+    pub admitted: usize,
+    /// Renders still admitted at its end: none, unless its time ran out.
+    pub left: usize,
+    pub elapsed: Duration,
+}
+
+impl Drainer {
+    /// From now on `/healthz` and every new render are answered 503
+    /// (`draining`) and no connection is kept alive. Returns once the
+    /// renders admitted before have finished, or `timeout` has passed;
+    /// [`Drainer::stop`] then ends the service.
+    pub fn drain(&self, timeout: Duration) -> Drained {
+        let started = Instant::now();
+        self.state.draining.store(true, Ordering::Relaxed);
+        let admitted = self.admitted();
+        let mut left = admitted;
+        while left > 0 && started.elapsed() < timeout {
+            thread::sleep(DRAIN_POLL);
+            left = self.admitted();
+        }
+        Drained {
+            admitted,
+            left,
+            elapsed: started.elapsed(),
+        }
+    }
+
+    /// Stops accepting; [`Server::run`] returns once the connections still
+    /// answering have written their responses.
+    pub fn stop(&self) {
+        stop_accepting(&self.state, self.addr);
+    }
+
+    fn admitted(&self) -> usize {
+        let counts = self.state.admission.counts();
+        counts.running + counts.waiting
     }
 }

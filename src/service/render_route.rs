@@ -7,7 +7,9 @@ use super::memory_budget::{resident_bytes, Charge};
 use super::{ServiceConfig, State};
 use crate::limits;
 use crate::output::Format;
-use crate::render::{render_scene, CancelToken, Deadline, RenderError, RenderOptions, Rendered};
+use crate::render::{
+    render_scene, CancelToken, Deadline, Region, RegionError, RenderError, RenderOptions, Rendered,
+};
 use crate::scene::{self, Scene};
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::mpsc::{self, RecvTimeoutError};
@@ -24,7 +26,7 @@ const CLIENT_POLL: Duration = Duration::from_millis(100);
 const STOP_GRACE: Duration = Duration::from_millis(100);
 
 /// The figures of a render, sent as headers and exposed to scripts.
-const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height";
+const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height, X-Worker";
 
 /// What the query string asks for.
 #[derive(Debug, PartialEq)]
@@ -32,15 +34,19 @@ pub struct RenderQuery {
     pub format: Format,
     pub spp: u32,
     pub depth: Option<u32>,
+    /// `region=X0,Y0,X1,Y1`: only that rectangle of the image.
+    pub region: Option<Region>,
 }
 
 impl RenderQuery {
-    /// `format=png|ppm`, `spp=N`, `depth=N`; other parameters are ignored.
+    /// `format=png|ppm`, `spp=N`, `depth=N`, `region=X0,Y0,X1,Y1`; other
+    /// parameters are ignored.
     pub fn parse(query: &str) -> Result<RenderQuery, ApiError> {
         let mut parsed = RenderQuery {
             format: Format::Png,
             spp: 1,
             depth: None,
+            region: None,
         };
         for pair in query.split('&').filter(|p| !p.is_empty()) {
             let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -58,6 +64,14 @@ impl RenderQuery {
                 }
                 "spp" => parsed.spp = number(key, value, 1, limits::MAX_SPP)?,
                 "depth" => parsed.depth = Some(number(key, value, 0, limits::MAX_DEPTH)?),
+                "region" => {
+                    // The commas may come percent-encoded from a browser.
+                    let value = value.replace("%2C", ",").replace("%2c", ",");
+                    let region = value
+                        .parse()
+                        .map_err(|e: RegionError| bad_query(e.to_string()))?;
+                    parsed.region = Some(region);
+                }
                 _ => {}
             }
         }
@@ -72,7 +86,20 @@ impl RenderQuery {
         RenderOptions {
             spp: self.spp,
             depth: self.depth,
+            region: self.region,
             ..RenderOptions::default()
+        }
+    }
+
+    /// The rectangle of `scene`'s image to render: the region asked for,
+    /// if it fits the image (else 400), or the whole image.
+    fn region_of(&self, scene: &Scene) -> Result<Region, ApiError> {
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        match self.region {
+            Some(region) => region
+                .within(width, height)
+                .map_err(|e| bad_query(e.to_string())),
+            None => Ok(Region::whole(width, height)),
         }
     }
 }
@@ -124,6 +151,7 @@ fn parse_scene(pool: &rayon::ThreadPool, body: &[u8]) -> Result<Scene, ApiError>
 fn render_failed(error: RenderError) -> ApiError {
     match error {
         RenderError::BadOption(why) => bad_query(why),
+        RenderError::BadRegion(why) => bad_query(why.to_string()),
         other => ApiErrorKind::Encode(other.to_string()).into(),
     }
 }
@@ -159,18 +187,22 @@ fn bad_query(message: String) -> ApiError {
     ApiErrorKind::Query(message).into()
 }
 
-/// A scene that parses but is more than this service renders: 422.
+/// A region outside the image: 400. A scene that parses but is more than
+/// this service renders (the region's pixels, when one is asked for): 422.
 fn check_limits(
     scene: &Scene,
     query: &RenderQuery,
     config: &ServiceConfig,
 ) -> Result<(), ApiError> {
-    let pixels = u64::from(scene.camera.width) * u64::from(scene.camera.height);
+    let region = query.region_of(scene)?;
+    let pixels = region.pixels();
     let too_much = |what: String| Err(ApiErrorKind::Limit(what).into());
     if pixels > config.max_pixels {
         return too_much(format!(
             "the image has {pixels} pixels ({}×{}); this service renders at most {}",
-            scene.camera.width, scene.camera.height, config.max_pixels
+            region.width(),
+            region.height(),
+            config.max_pixels
         ));
     }
     if scene.spheres.len() > config.max_spheres {
@@ -229,6 +261,9 @@ pub fn handle(
 ) -> Result<Option<Response>, ApiError> {
     let config = &state.config;
     let query = RenderQuery::parse(&head.query)?;
+    if state.draining() {
+        return Err(ApiErrorKind::Draining.into());
+    }
     let place = state
         .admission
         .reserve()
@@ -261,7 +296,8 @@ pub fn handle(
     let scene = parse_scene(&state.pool, &body)?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
-    let held = charge_render(state, &scene, query.format)?;
+    let region = query.region_of(&scene)?;
+    let held = charge_render(state, &scene, &region, query.format)?;
     if budget.spent() {
         return Err(budget.stopped(state));
     }
@@ -288,11 +324,23 @@ pub fn handle(
     drop(rendered);
     // Only the encoded image is held from here until it is written.
     held.shrink_to(encoded.bytes.len() as u64);
-    Ok(Some(image_response(encoded, &name, elapsed, held)))
+    Ok(Some(image_response(
+        encoded,
+        &name,
+        &state.worker,
+        elapsed,
+        held,
+    )))
 }
 
 /// The 200 answer: the image, its download name, and its figures as headers.
-fn image_response(encoded: EncodedRender, name: &str, elapsed: Duration, held: Charge) -> Response {
+fn image_response(
+    encoded: EncodedRender,
+    name: &str,
+    worker: &str,
+    elapsed: Duration,
+    held: Charge,
+) -> Response {
     let EncodedRender {
         bytes,
         format,
@@ -310,6 +358,7 @@ fn image_response(encoded: EncodedRender, name: &str, elapsed: Duration, held: C
         .with_header("X-Rays", rays.to_string())
         .with_header("X-Image-Width", width.to_string())
         .with_header("X-Image-Height", height.to_string())
+        .with_header("X-Worker", worker.to_owned())
         .with_header("Access-Control-Expose-Headers", FIGURE_HEADERS);
     response.hold = Some(held);
     response
@@ -432,10 +481,14 @@ fn watched_render(
 /// and the largest encoding of the image, which is held until written.
 /// NotAdmitted (with the part that does not fit) if the budget or the measured
 /// resident set has no room.
-fn charge_render(state: &State, scene: &Scene, format: Format) -> Result<Charge, ApiError> {
+fn charge_render(
+    state: &State,
+    scene: &Scene,
+    region: &Region,
+    format: Format,
+) -> Result<Charge, ApiError> {
     let scene_bytes = scene_bytes(scene);
-    let pixels = u64::from(scene.camera.width) * u64::from(scene.camera.height);
-    let image_bytes = 3 * pixels + encoded_bound(scene, format);
+    let image_bytes = 3 * region.pixels() + encoded_bound(region, format);
     let bytes = scene_bytes + image_bytes;
     let limit = state.memory.limit();
     let resident = || {
@@ -468,15 +521,12 @@ fn scene_bytes(scene: &Scene) -> u64 {
     (scene.spheres.len() * per_sphere + lights) as u64
 }
 
-/// The largest encoding of the scene's image, in bytes. A PPM is its
+/// The largest encoding of the image of `region`, in bytes. A PPM is its
 /// pixels and a short header. A PNG's deflate stream may store what it
 /// cannot compress, at 5 bytes per stored block of at most 65,535 bytes,
 /// after a filter byte per row, inside chunks of 12 bytes each.
-fn encoded_bound(scene: &Scene, format: Format) -> u64 {
-    let (width, height) = (
-        u64::from(scene.camera.width),
-        u64::from(scene.camera.height),
-    );
+fn encoded_bound(region: &Region, format: Format) -> u64 {
+    let (width, height) = (u64::from(region.width()), u64::from(region.height()));
     let raw = 3 * width * height;
     match format {
         Format::Ppm => raw + 32,
@@ -502,7 +552,8 @@ mod tests {
             RenderQuery {
                 format: Format::Png,
                 spp: 1,
-                depth: None
+                depth: None,
+                region: None,
             }
         );
         assert_eq!(
@@ -510,7 +561,8 @@ mod tests {
             RenderQuery {
                 format: Format::Ppm,
                 spp: 4,
-                depth: Some(0)
+                depth: Some(0),
+                region: None,
             }
         );
         for bad in [
@@ -520,6 +572,8 @@ mod tests {
             "spp=two",
             "depth=-1",
             "depth=65",
+            "region=1,2,3",
+            "region=a,b,c,d",
         ] {
             let e = RenderQuery::parse(bad).unwrap_err();
             assert_eq!((e.kind.status(), e.kind.name()), (400, "query"), "{bad}");
@@ -543,6 +597,7 @@ mod tests {
             format: Format::Png,
             spp: 4,
             depth: None,
+            region: None,
         };
         let config = ServiceConfig {
             max_pixels: 600 * 600,

@@ -76,6 +76,15 @@ fn method_not_allowed(method: &str, allow: &'static str) -> ApiError {
 fn get_resource(state: &State, path: &str) -> Option<Response> {
     let text = |body: String| Response::new(200, "text/plain; charset=utf-8", body);
     let response = match path {
+        // A draining service is alive but wants no more work: a load
+        // balancer or monitor that asks takes it out of rotation.
+        "/healthz" if state.draining() => {
+            return Some(
+                Response::new(503, "text/plain; charset=utf-8", "draining\n")
+                    .with_header("Cache-Control", "no-store")
+                    .with_header("Retry-After", crate::limits::RETRY_AFTER_S.to_string()),
+            )
+        }
         "/healthz" => text("ok\n".into()),
         "/metrics" => Response::new(
             200,

@@ -255,6 +255,8 @@ pub fn wait_for_metric(addr: SocketAddr, metric_name: &str, value: u64) {
 /// its own; killed when dropped.
 pub struct ServeProcess {
     child: Child,
+    /// The rest of its standard output, after the `listening on` line.
+    stdout: BufReader<std::process::ChildStdout>,
     pub addr: SocketAddr,
 }
 
@@ -267,16 +269,41 @@ impl ServeProcess {
             .spawn()
             .unwrap();
         let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        stdout.read_line(&mut line).unwrap();
         let addr = line
             .trim()
             .strip_prefix("listening on http://")
             .unwrap_or_else(|| panic!("the server said {line:?}"))
             .parse()
             .unwrap();
-        ServeProcess { child, addr }
+        ServeProcess {
+            child,
+            stdout,
+            addr,
+        }
+    }
+
+    /// Sends it the signal `signal` (SIGTERM, SIGKILL, …).
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    pub fn signal(&self, signal: libc::c_int) {
+        signal_process(self.child.id(), signal);
+    }
+
+    /// Waits for it to exit, [`PATIENCE`] at most; its exit status and
+    /// what it wrote to stdout after the first line.
+    pub fn wait_for_exit(&mut self) -> (std::process::ExitStatus, String) {
+        let started = Instant::now();
+        let status = loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                break status;
+            }
+            assert!(started.elapsed() < PATIENCE, "the server never exited");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        let mut rest = String::new();
+        self.stdout.read_to_string(&mut rest).unwrap();
+        (status, rest)
     }
 
     /// A line of `/proc/PID/status` in bytes: `VmRSS` now, `VmHWM` its peak.
@@ -300,4 +327,13 @@ impl Drop for ServeProcess {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// Sends `signal` to the process `pid`.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+pub fn signal_process(pid: u32, signal: libc::c_int) {
+    // SAFETY: kill() takes no pointers; a pid that has gone is an error
+    // it reports, checked here.
+    let sent = unsafe { libc::kill(pid as libc::pid_t, signal) };
+    assert_eq!(sent, 0, "kill {pid}: {}", std::io::Error::last_os_error());
 }
