@@ -6,7 +6,7 @@ use super::scene_input::read_scene;
 use super::CliError;
 use crate::limits;
 use crate::output::Format;
-use crate::render::{render_scene, IndexKind, RenderOptions, Rendered, SpecularModel};
+use crate::render::{render_scene, IndexKind, RenderOptions, Rendered, Rules, SpecularModel};
 use crate::threads::Threads;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
@@ -47,6 +47,18 @@ pub struct RenderArgs {
     /// Stop recursing once a ray's weight cannot change the 8-bit output.
     #[arg(long)]
     adaptive: bool,
+    /// Which of the course's two key sets to reproduce.
+    #[arg(long, value_parser = choice(rules_help), default_value_t = Rules::default())]
+    rules: Rules,
+}
+
+fn rules_help(rules: Rules) -> &'static str {
+    match rules {
+        Rules::Default => "The scene format's rules (the course's newer keys)",
+        Rules::Ucla => {
+            "Outward normals on inside hits, reflected rays cut at t = 1 (the course's older keys)"
+        }
+    }
 }
 
 fn index_help(index: IndexKind) -> &'static str {
@@ -83,6 +95,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         specular: args.specular,
         adaptive_cutoff: args.adaptive,
         index: args.index,
+        rules: args.rules,
         deadline: None,
     };
     let progress = RowProgress::new(scene.camera.height);

@@ -3,10 +3,12 @@
 
 mod camera;
 mod deadline;
+mod rules;
 mod shading;
 
 pub use camera::PixelSampler;
 pub use deadline::{CancelToken, Deadline};
+pub use rules::Rules;
 
 use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{BruteForce, SphereIndex, VoxelHashGrid};
@@ -52,6 +54,8 @@ pub struct RenderOptions {
     /// Stop recursing once a ray's weight cannot change an 8-bit output value.
     pub adaptive_cutoff: bool,
     pub index: IndexKind,
+    /// Which of the course's two rule sets to follow.
+    pub rules: Rules,
     /// Give up once this instant has passed ([`RenderError::TimedOut`]) or
     /// its token is cancelled ([`RenderError::Cancelled`]).
     pub deadline: Option<Deadline>,
@@ -65,6 +69,7 @@ impl Default for RenderOptions {
             specular: None,
             adaptive_cutoff: false,
             index: IndexKind::default(),
+            rules: Rules::default(),
             deadline: None,
         }
     }

@@ -4,7 +4,7 @@
 //! the intersection work, and it keeps the f32/f64 comparison about geometry).
 
 use super::deadline::Stop;
-use super::{RayCounts, RenderOptions, SpecularModel};
+use super::{RayCounts, RenderOptions, Rules, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{compact_order, Hit, SphereIndex};
 use crate::limits;
@@ -36,6 +36,7 @@ pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     lights: Vec<(V3<R>, DVec3)>,
     max_depth: u32,
     specular: SpecularModel,
+    rules: Rules,
     /// Smallest weight worth a secondary ray, and how a weight is measured.
     min_weight: f64,
     weight_norm: fn(DVec3) -> f64,
@@ -83,6 +84,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             lights,
             max_depth,
             specular: options.specular.unwrap_or(own_specular),
+            rules: options.rules,
             min_weight,
             weight_norm,
             secondary_miss,
@@ -140,7 +142,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                     continue;
                 };
                 let m = &self.scene.spheres[hit.sphere as usize].material;
-                if takes_direct_light(m) && faces(surface, position).is_some() {
+                if takes_direct_light(m) && self.faces(surface, position).is_some() {
                     which.push(i);
                     origins.push(spawn_origin(surface, position - surface.point));
                 }
@@ -214,10 +216,12 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         }
     }
 
-    /// A reflected or refracted ray, which carries `weight` of the pixel.
+    /// A reflected or refracted ray, which carries `weight` of the pixel,
+    /// and takes the nearest hit beyond `t_min`.
     fn trace_secondary(
         &self,
         ray: &Ray<R>,
+        t_min: R,
         depth: u32,
         weight: DVec3,
         counts: &mut RayCounts,
@@ -225,7 +229,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         if self.stop.now() {
             return DVec3::ZERO;
         }
-        match self.index.closest_hit(ray, R::zero(), R::infinity()) {
+        match self.index.closest_hit(ray, t_min, R::infinity()) {
             Some(hit) => {
                 let surface = self.shapes[hit.sphere as usize].surface_point(ray, hit.t);
                 self.shade_at(ray, hit, &surface, depth, weight, Shadows::Trace, counts)
@@ -283,9 +287,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         if !takes_direct_light(m) {
             return sum;
         }
-        let n = surface.normal;
+        let n = self.rules.lighting_normal(surface);
         for (l, &(position, intensity)) in self.lights.iter().enumerate() {
-            let Some((to_light, n_dot_l)) = faces(surface, position) else {
+            let Some((to_light, n_dot_l)) = self.faces(surface, position) else {
                 continue;
             };
             let blocked = match shadows {
@@ -325,6 +329,16 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         // t = 1 is the light itself; blockers beyond it do not count.
         self.index
             .any_hit(&Ray::new(origin, light - origin), R::one())
+    }
+
+    /// The unit direction from the surface point to the light at `position`
+    /// and its cosine with the lighting normal, when the light is in front
+    /// of the surface (a light behind it is shadowed by the closed surface
+    /// itself: no shadow ray is needed, nor any term).
+    fn faces(&self, surface: &SurfacePoint<R>, position: V3<R>) -> Option<(V3<R>, R)> {
+        let to_light = (position - surface.point).normalize();
+        let n_dot_l = self.rules.lighting_normal(surface).dot(to_light);
+        (n_dot_l > R::zero()).then_some((to_light, n_dot_l))
     }
 
     /// `max(0, R·V)` (Phong) or `max(0, N·H)` (Blinn).
@@ -367,10 +381,10 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             if (self.weight_norm)(next_weight) < self.min_weight || next_weight == DVec3::ZERO {
                 continue;
             }
-            let out = match bounce {
+            let (out, t_min) = match bounce {
                 Bounce::Reflection => {
                     counts.reflection += 1;
-                    reflect::<R>(dir, n)
+                    (reflect::<R>(dir, n), self.rules.reflection_t_min())
                 }
                 Bounce::Refraction => {
                     counts.refraction += 1;
@@ -380,11 +394,12 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                         R::from_f64(m.ior)
                     };
                     // Total internal reflection sends the light back inside, with the same weight.
-                    refract(dir, n, ratio).unwrap_or_else(|| reflect::<R>(dir, n))
+                    let out = refract(dir, n, ratio).unwrap_or_else(|| reflect::<R>(dir, n));
+                    (out, R::zero())
                 }
             };
             let next = Ray::new(spawn_origin(surface, out), out);
-            sum += gain * self.trace_secondary(&next, depth + 1, next_weight, counts);
+            sum += gain * self.trace_secondary(&next, t_min, depth + 1, next_weight, counts);
         }
         sum
     }
@@ -394,16 +409,6 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
 /// need no shadow rays.
 fn takes_direct_light(m: &Material) -> bool {
     m.diffuse != 0.0 || m.specular != 0.0
-}
-
-/// The unit direction from the surface point to the light at `position`
-/// and its cosine with the normal, when the light is in front of the
-/// surface (a light behind it is shadowed by the closed surface itself:
-/// no shadow ray is needed, nor any term).
-fn faces<R: Real>(surface: &SurfacePoint<R>, position: V3<R>) -> Option<(V3<R>, R)> {
-    let to_light = (position - surface.point).normalize();
-    let n_dot_l = surface.normal.dot(to_light);
-    (n_dot_l > R::zero()).then_some((to_light, n_dot_l))
 }
 
 /// Whether any sphere can send light back along a secondary ray, in the

@@ -6,8 +6,11 @@ use super::http::{Connection, RequestHead, Response};
 use super::memory_budget::{resident_bytes, Charge};
 use super::{ServiceConfig, State};
 use crate::limits;
+use crate::names::Named;
 use crate::output::Format;
-use crate::render::{render_scene, CancelToken, Deadline, RenderError, RenderOptions, Rendered};
+use crate::render::{
+    render_scene, CancelToken, Deadline, RenderError, RenderOptions, Rendered, Rules,
+};
 use crate::scene::{self, Scene};
 use std::panic::{self, AssertUnwindSafe};
 use std::sync::mpsc::{self, RecvTimeoutError};
@@ -32,15 +35,18 @@ pub struct RenderQuery {
     pub format: Format,
     pub spp: u32,
     pub depth: Option<u32>,
+    pub rules: Rules,
 }
 
 impl RenderQuery {
-    /// `format=png|ppm`, `spp=N`, `depth=N`; other parameters are ignored.
+    /// `format=png|ppm`, `spp=N`, `depth=N`, `rules=default|ucla`; other
+    /// parameters are ignored.
     pub fn parse(query: &str) -> Result<RenderQuery, ApiError> {
         let mut parsed = RenderQuery {
             format: Format::Png,
             spp: 1,
             depth: None,
+            rules: Rules::default(),
         };
         for pair in query.split('&').filter(|p| !p.is_empty()) {
             let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -58,6 +64,9 @@ impl RenderQuery {
                 }
                 "spp" => parsed.spp = number(key, value, 1, limits::MAX_SPP)?,
                 "depth" => parsed.depth = Some(number(key, value, 0, limits::MAX_DEPTH)?),
+                "rules" => {
+                    parsed.rules = Rules::from_name(value).map_err(|e| bad_query(e.to_string()))?
+                }
                 _ => {}
             }
         }
@@ -66,12 +75,13 @@ impl RenderQuery {
 }
 
 impl RenderQuery {
-    /// What the renderer is asked for: the query's samples and depth, the
-    /// rest as the library's defaults.
+    /// What the renderer is asked for: the query's samples, depth and
+    /// rules, the rest as the library's defaults.
     fn options(&self) -> RenderOptions {
         RenderOptions {
             spp: self.spp,
             depth: self.depth,
+            rules: self.rules,
             ..RenderOptions::default()
         }
     }
@@ -502,15 +512,17 @@ mod tests {
             RenderQuery {
                 format: Format::Png,
                 spp: 1,
-                depth: None
+                depth: None,
+                rules: Rules::Default,
             }
         );
         assert_eq!(
-            RenderQuery::parse("format=ppm&spp=4&depth=0&x=1").unwrap(),
+            RenderQuery::parse("format=ppm&spp=4&depth=0&rules=ucla&x=1").unwrap(),
             RenderQuery {
                 format: Format::Ppm,
                 spp: 4,
-                depth: Some(0)
+                depth: Some(0),
+                rules: Rules::Ucla,
             }
         );
         for bad in [
@@ -520,6 +532,8 @@ mod tests {
             "spp=two",
             "depth=-1",
             "depth=65",
+            "rules=UCLA",
+            "rules=",
         ] {
             let e = RenderQuery::parse(bad).unwrap_err();
             assert_eq!((e.kind.status(), e.kind.name()), (400, "query"), "{bad}");
@@ -543,6 +557,7 @@ mod tests {
             format: Format::Png,
             spp: 4,
             depth: None,
+            rules: Rules::Default,
         };
         let config = ServiceConfig {
             max_pixels: 600 * 600,
