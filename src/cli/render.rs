@@ -96,6 +96,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         adaptive_cutoff: args.adaptive,
         index: args.index,
         rules: args.rules,
+        refine: true,
         deadline: None,
     };
     let progress = RowProgress::new(scene.camera.height);

@@ -56,6 +56,9 @@ pub struct RenderOptions {
     pub index: IndexKind,
     /// Which of the course's two rule sets to follow.
     pub rules: Rules,
+    /// Recompute in f64 the f32 hit points of spheres whose reach dwarfs
+    /// the point (`geometry::ellipsoid`); no effect in f64.
+    pub refine: bool,
     /// Give up once this instant has passed ([`RenderError::TimedOut`]) or
     /// its token is cancelled ([`RenderError::Cancelled`]).
     pub deadline: Option<Deadline>,
@@ -70,6 +73,7 @@ impl Default for RenderOptions {
             adaptive_cutoff: false,
             index: IndexKind::default(),
             rules: Rules::default(),
+            refine: true,
             deadline: None,
         }
     }

@@ -63,6 +63,7 @@ mod tests {
             normal: Vec3::Z,
             inside,
             error: Vec3::ZERO,
+            refined: false,
         }
     }
 

@@ -37,6 +37,8 @@ pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     max_depth: u32,
     specular: SpecularModel,
     rules: Rules,
+    /// Whether hit points are [`Ellipsoid::precise_surface_point`]s.
+    refine: bool,
     /// Smallest weight worth a secondary ray, and how a weight is measured.
     min_weight: f64,
     weight_norm: fn(DVec3) -> f64,
@@ -85,6 +87,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             max_depth,
             specular: options.specular.unwrap_or(own_specular),
             rules: options.rules,
+            refine: options.refine,
             min_weight,
             weight_norm,
             secondary_miss,
@@ -107,8 +110,17 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
 
     /// The surface point where the eye ray with direction `dir` meets `hit`.
     pub fn eye_surface(&self, dir: V3<R>, hit: Hit<R>) -> SurfacePoint<R> {
-        let ray = Ray::new(V3::<R>::ZERO, dir);
-        self.shapes[hit.sphere as usize].surface_point(&ray, hit.t)
+        self.surface(&Ray::new(V3::<R>::ZERO, dir), hit)
+    }
+
+    /// The surface point where `ray` meets `hit`, the index's choice.
+    fn surface(&self, ray: &Ray<R>, hit: Hit<R>) -> SurfacePoint<R> {
+        let shape = &self.shapes[hit.sphere as usize];
+        if self.refine {
+            shape.precise_surface_point(ray, hit.t)
+        } else {
+            shape.surface_point(ray, hit.t)
+        }
     }
 
     /// How many lights shading reads: the length of each hit's row of
@@ -231,7 +243,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         }
         match self.index.closest_hit(ray, t_min, R::infinity()) {
             Some(hit) => {
-                let surface = self.shapes[hit.sphere as usize].surface_point(ray, hit.t);
+                let surface = self.surface(ray, hit);
                 self.shade_at(ray, hit, &surface, depth, weight, Shadows::Trace, counts)
             }
             None => self.secondary_miss,
