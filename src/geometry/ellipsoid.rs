@@ -44,8 +44,10 @@
 //!
 //! [`Ellipsoid::precise_surface_point`] recomputes such a hit in f64 — the
 //! same f32 ray, sphere and chosen root, so the index's choice of sphere and
-//! t is untouched — when `|C| + |offset| > `[`limits::REFINE_REACH_RATIO`]`·|P|`
-//! (max-norms), that is when the sum cancels more than 4 bits. The f64
+//! t is untouched — when `|C| + |S| > `[`limits::REFINE_REACH_RATIO`]`·|o + t·d|`
+//! (max-norms; `|S|` bounds `|offset|`, and `o + t·d` is the point as the
+//! ray puts it, known before any point is computed), that is when the sum
+//! would cancel more than 4 bits. The f64
 //! point's own error, `γ₆₄(8)·(|C| + |offset|)`, stays below f32's rounding
 //! of it, `u·|P|`, while the reach is under 6.7e7·|P| (and beyond, as on the
 //! planet's far ground, it is still 6.7e7 times below the f32 point's).
@@ -165,7 +167,7 @@ impl<R: Real> Ellipsoid<R> {
         if self.frame().is_far(ray) {
             return self.wide_surface_point(ray, t);
         }
-        self.near_surface_point(ray, t).0
+        self.near_surface_point(ray, t)
     }
 
     /// [`Self::surface_point`], recomputed in f64 where the sphere's reach
@@ -175,11 +177,21 @@ impl<R: Real> Ellipsoid<R> {
         if !R::NARROW || self.frame().is_far(ray) {
             return self.surface_point(ray, t);
         }
-        let (plain, reach) = self.near_surface_point(ray, t);
+        // Decided before any point is computed: the reach |C| + |offset| is
+        // at most |C| + |S|, and the point is where the ray puts it.
+        let reach = self.center.abs() + self.scale.abs();
         let ratio = R::from_f64(limits::REFINE_REACH_RATIO);
-        if reach.max_element() <= ratio * plain.point.abs().max_element() {
-            return plain;
+        if reach.max_element() <= ratio * ray.at(t).abs().max_element() {
+            return self.near_surface_point(ray, t);
         }
+        // γ(9) rather than γ(8): |offset| may exceed |S| by an ulp.
+        self.refined_surface_point(ray, t, reach * R::gamma(9))
+    }
+
+    /// The refined point of [`Self::precise_surface_point`], with the bound
+    /// `error` on the plain point's error as its clearance.
+    #[inline(never)]
+    fn refined_surface_point(&self, ray: &Ray<R>, t: R, error: V3<R>) -> SurfacePoint<R> {
         // The sphere of `scale` itself: `inv_scale` rounded to f32 is off by
         // up to u of the radius (6e-5 at radius 1000, 0.4 at 6.4e6), which
         // along a shallow ray moves the point by that over the sine.
@@ -187,24 +199,32 @@ impl<R: Real> Ellipsoid<R> {
         let (point, _, outward) = self.wide_point(ray, t, exact);
         SurfacePoint {
             refined: true,
-            ..Self::surface(point, outward, ray, plain.error)
+            ..Self::surface(point, outward, ray, error)
         }
     }
 
+    /// Whether any hit of this ellipsoid can pass the test of
+    /// [`Self::precise_surface_point`], decided once per sphere: a point `P`
+    /// on it has `|P| ≥ |C| − |S|` (max-norms; the ray's `o + t·d` is off
+    /// by a few ulps of it at most, hence the 1% slack).
+    pub fn may_need_refining(&self) -> bool {
+        let (c, s) = (
+            self.center.abs().max_element(),
+            self.scale.abs().max_element(),
+        );
+        let ratio = R::from_f64(limits::REFINE_REACH_RATIO);
+        (c + s) * R::from_f64(1.01) > ratio * (c - s)
+    }
+
     /// [`Self::surface_point`] in `R` for a ray from within
-    /// [`Real::NEAR_FRAME`] radii, and the reach `|C| + |offset|` its error
-    /// bound is made of.
+    /// [`Real::NEAR_FRAME`] radii.
     #[inline]
-    fn near_surface_point(&self, ray: &Ray<R>, t: R) -> (SurfacePoint<R>, V3<R>) {
+    fn near_surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
         let local = self.local(ray);
         let entering = entering(Self::roots(&local), t, -local.b / local.a);
         let (offset, outward) = self.offset_and_normal(&local, entering);
-        let reach = self.center.abs() + offset.abs();
-        let error = reach * R::gamma(8);
-        (
-            Self::surface(self.center + offset, outward, ray, error),
-            reach,
-        )
+        let error = (self.center.abs() + offset.abs()) * R::gamma(8);
+        Self::surface(self.center + offset, outward, ray, error)
     }
 
     /// [`Self::surface_point`] computed in f64 and rounded to `R`, for rays

@@ -22,16 +22,40 @@ use super::{Real, SurfacePoint, Vec3Ops, V3};
 use crate::limits;
 
 /// The origin for a ray leaving `surface` in direction `dir`.
+#[inline]
 pub fn spawn_origin<R: Real>(surface: &SurfacePoint<R>, dir: V3<R>) -> V3<R> {
+    if surface.refined {
+        return spawn_along(surface, dir);
+    }
+    let n = surface.normal;
+    let d = n.abs().dot(surface.error);
+    let offset = if dir.dot(n) < R::zero() {
+        n * -d
+    } else {
+        n * d
+    };
+    away::<R>(surface.point, offset)
+}
+
+/// [`spawn_origin`] for a refined point: a move of clearance `d` from the
+/// tangent plane, along `dir` as far as [`limits::SPAWN_MAX_TRAVEL`]·`d`
+/// allows, the rest along the normal on the side `dir` leaves to.
+#[inline(never)]
+fn spawn_along<R: Real>(surface: &SurfacePoint<R>, dir: V3<R>) -> V3<R> {
     let n = surface.normal;
     let d = n.abs().dot(surface.error);
     let side = if dir.dot(n) < R::zero() { -n } else { n };
-    let offset = if surface.refined {
-        along_ray(dir, side, d)
-    } else {
-        side * d
-    };
-    let p = surface.point + offset;
+    let unit = dir.normalize();
+    let cos = unit.dot(side).max(R::zero());
+    let travel = (d / cos).min(R::from_f64(limits::SPAWN_MAX_TRAVEL) * d);
+    let rest = (d - travel * cos).max(R::zero());
+    away::<R>(surface.point, unit * travel + side * rest)
+}
+
+/// `p + offset`, each coordinate rounded one more float the way `offset` goes.
+#[inline(always)]
+fn away<R: Real>(p: V3<R>, offset: V3<R>) -> V3<R> {
+    let p = p + offset;
     let away = |p: R, o: R| {
         if o > R::zero() {
             p.next_up()
@@ -46,17 +70,6 @@ pub fn spawn_origin<R: Real>(surface: &SurfacePoint<R>, dir: V3<R>) -> V3<R> {
         away(p.y(), offset.y()),
         away(p.z(), offset.z()),
     )
-}
-
-/// A move of clearance `d` from the tangent plane toward `side` (the unit
-/// normal on the side `dir` leaves to): along `dir` as far as
-/// [`limits::SPAWN_MAX_TRAVEL`]·`d` allows, the rest along `side`.
-fn along_ray<R: Real>(dir: V3<R>, side: V3<R>, d: R) -> V3<R> {
-    let unit = dir.normalize();
-    let cos = unit.dot(side).max(R::zero());
-    let travel = (d / cos).min(R::from_f64(limits::SPAWN_MAX_TRAVEL) * d);
-    let rest = (d - travel * cos).max(R::zero());
-    unit * travel + side * rest
 }
 
 #[cfg(test)]

@@ -13,8 +13,9 @@
 //! 2. reflected rays accept only hits with t > 1 along their unit
 //!    direction, as eye rays do along theirs (t = 1 is the near plane).
 //!
-//! Everything else is shared. Mirror directions and spawn offsets do not
-//! depend on the normal's sign, so rule 1 changes only what reads N·L or
+//! Everything else is shared. Rule 1 is applied once per hit, to the
+//! normal the hit carries into shading; mirror directions and spawn offsets
+//! do not depend on the normal's sign, so it changes only what reads N·L or
 //! N·H (diffuse, the shadow rays it asks for, Blinn highlights; Phong's
 //! R·V is the same either way). Refraction still bends about the normal
 //! facing the ray, and a totally internally reflected ray is a refracted
@@ -33,9 +34,22 @@ pub enum Rules {
 }
 
 impl Rules {
-    /// The unit normal that direct lighting reads at `surface`.
+    /// `surface` (its normal facing the ray) with the normal shading reads.
     #[inline]
-    pub(super) fn lighting_normal<R: Real>(self, surface: &SurfacePoint<R>) -> V3<R> {
+    pub(super) fn shading<R: Real>(self, surface: SurfacePoint<R>) -> SurfacePoint<R> {
+        match self {
+            Rules::Ucla if surface.inside => SurfacePoint {
+                normal: -surface.normal,
+                ..surface
+            },
+            _ => surface,
+        }
+    }
+
+    /// The normal facing the ray at a `surface` made by [`Self::shading`],
+    /// for refraction.
+    #[inline]
+    pub(super) fn facing_normal<R: Real>(self, surface: &SurfacePoint<R>) -> V3<R> {
         match self {
             Rules::Ucla if surface.inside => -surface.normal,
             _ => surface.normal,
@@ -69,9 +83,15 @@ mod tests {
 
     #[test]
     fn only_ucla_turns_an_inside_normal_back_outward() {
-        assert_eq!(Rules::Default.lighting_normal(&hit(true)), Vec3::Z);
-        assert_eq!(Rules::Ucla.lighting_normal(&hit(true)), Vec3::NEG_Z);
-        assert_eq!(Rules::Ucla.lighting_normal(&hit(false)), Vec3::Z);
+        assert_eq!(Rules::Default.shading(hit(true)).normal, Vec3::Z);
+        assert_eq!(Rules::Ucla.shading(hit(true)).normal, Vec3::NEG_Z);
+        assert_eq!(Rules::Ucla.shading(hit(false)).normal, Vec3::Z);
+        for rules in [Rules::Default, Rules::Ucla] {
+            for inside in [false, true] {
+                let shading = rules.shading(hit(inside));
+                assert_eq!(rules.facing_normal(&shading), Vec3::Z);
+            }
+        }
     }
 
     #[test]

@@ -37,8 +37,10 @@ pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     max_depth: u32,
     specular: SpecularModel,
     rules: Rules,
-    /// Whether hit points are [`Ellipsoid::precise_surface_point`]s.
-    refine: bool,
+    /// Per sphere, whether its hit points are
+    /// [`Ellipsoid::precise_surface_point`]s: empty when the precision rule
+    /// is off, false for a sphere none of whose hits can need it.
+    refine: Vec<bool>,
     /// Smallest weight worth a secondary ray, and how a weight is measured.
     min_weight: f64,
     weight_norm: fn(DVec3) -> f64,
@@ -87,7 +89,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             max_depth,
             specular: options.specular.unwrap_or(own_specular),
             rules: options.rules,
-            refine: options.refine,
+            refine: refinable(shapes, options.refine),
             min_weight,
             weight_norm,
             secondary_miss,
@@ -113,14 +115,17 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         self.surface(&Ray::new(V3::<R>::ZERO, dir), hit)
     }
 
-    /// The surface point where `ray` meets `hit`, the index's choice.
+    /// The surface point where `ray` meets `hit`, the index's choice, with
+    /// the normal shading reads ([`Rules::shading`]).
     fn surface(&self, ray: &Ray<R>, hit: Hit<R>) -> SurfacePoint<R> {
-        let shape = &self.shapes[hit.sphere as usize];
-        if self.refine {
+        let k = hit.sphere as usize;
+        let shape = &self.shapes[k];
+        let surface = if self.refine.get(k).copied().unwrap_or(false) {
             shape.precise_surface_point(ray, hit.t)
         } else {
             shape.surface_point(ray, hit.t)
-        }
+        };
+        self.rules.shading(surface)
     }
 
     /// How many lights shading reads: the length of each hit's row of
@@ -154,7 +159,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                     continue;
                 };
                 let m = &self.scene.spheres[hit.sphere as usize].material;
-                if takes_direct_light(m) && self.faces(surface, position).is_some() {
+                if takes_direct_light(m) && faces(surface, position).is_some() {
                     which.push(i);
                     origins.push(spawn_origin(surface, position - surface.point));
                 }
@@ -299,9 +304,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         if !takes_direct_light(m) {
             return sum;
         }
-        let n = self.rules.lighting_normal(surface);
+        let n = surface.normal;
         for (l, &(position, intensity)) in self.lights.iter().enumerate() {
-            let Some((to_light, n_dot_l)) = self.faces(surface, position) else {
+            let Some((to_light, n_dot_l)) = faces(surface, position) else {
                 continue;
             };
             let blocked = match shadows {
@@ -341,16 +346,6 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         // t = 1 is the light itself; blockers beyond it do not count.
         self.index
             .any_hit(&Ray::new(origin, light - origin), R::one())
-    }
-
-    /// The unit direction from the surface point to the light at `position`
-    /// and its cosine with the lighting normal, when the light is in front
-    /// of the surface (a light behind it is shadowed by the closed surface
-    /// itself: no shadow ray is needed, nor any term).
-    fn faces(&self, surface: &SurfacePoint<R>, position: V3<R>) -> Option<(V3<R>, R)> {
-        let to_light = (position - surface.point).normalize();
-        let n_dot_l = self.rules.lighting_normal(surface).dot(to_light);
-        (n_dot_l > R::zero()).then_some((to_light, n_dot_l))
     }
 
     /// `max(0, R·V)` (Phong) or `max(0, N·H)` (Blinn).
@@ -406,6 +401,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                         R::from_f64(m.ior)
                     };
                     // Total internal reflection sends the light back inside, with the same weight.
+                    let n = self.rules.facing_normal(surface);
                     let out = refract(dir, n, ratio).unwrap_or_else(|| reflect::<R>(dir, n));
                     (out, R::zero())
                 }
@@ -415,6 +411,26 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         }
         sum
     }
+}
+
+/// The unit direction from the surface point to the light at `position`
+/// and its cosine with the normal, when the light is in front of the
+/// surface (a light behind it is shadowed by the closed surface itself:
+/// no shadow ray is needed, nor any term).
+fn faces<R: Real>(surface: &SurfacePoint<R>, position: V3<R>) -> Option<(V3<R>, R)> {
+    let to_light = (position - surface.point).normalize();
+    let n_dot_l = surface.normal.dot(to_light);
+    (n_dot_l > R::zero()).then_some((to_light, n_dot_l))
+}
+
+/// Per sphere of `shapes`, whether the precision rule may refine its hits
+/// ([`Ellipsoid::may_need_refining`]); empty when `refine` is off or the
+/// precision is f64 already.
+fn refinable<R: Real>(shapes: &[Ellipsoid<R>], refine: bool) -> Vec<bool> {
+    if !refine || !R::NARROW {
+        return vec![];
+    }
+    shapes.iter().map(Ellipsoid::may_need_refining).collect()
 }
 
 /// Whether the material has a direct-light term at all: if not, its hits
