@@ -56,6 +56,15 @@ pub const MAX_SPP: u32 = 1_024;
 pub const BROWSER_MIN_WEIGHT: f64 = 0.3;
 /// The adaptive cut-off: a ray whose weight is below half an 8-bit level cannot change the output.
 pub const ADAPTIVE_MIN_WEIGHT: f64 = 1.0 / 512.0;
+/// How much larger than the hit point's own coordinates the sphere's centre
+/// and reach may be before an f32 hit point is recomputed in f64: beyond it
+/// the sum `centre + offset` cancels more than 4 of f32's 24 bits
+/// (`geometry::ellipsoid` derives the rule).
+pub const REFINE_REACH_RATIO: f64 = 16.0;
+/// How far along a spawned ray, in clearances, its origin may move off a
+/// refined hit before the rest of the clearance is taken along the normal
+/// (`geometry::spawn`).
+pub const SPAWN_MAX_TRAVEL: f64 = 8.0;
 
 // ---- The render service (`voxtrace serve`); each has a flag of the same name. ----
 

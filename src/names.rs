@@ -1,11 +1,11 @@
-//! The names users choose by: the index, the specular model, the scene
+//! The names users choose by: the index, the specular model, the rule set, the scene
 //! distribution of `voxtrace gen`, the report's scene families. Each value
 //! is parsed from and shown as one lower-case name wherever a user meets it
 //! (flags, reports, error messages), and every such name is written once,
 //! in the tables at the end of this file, so that a front end (the CLI's
 //! flag parser, a test) reads them from here rather than keeping its own.
 
-use crate::render::{IndexKind, SpecularModel};
+use crate::render::{IndexKind, Rules, SpecularModel};
 use crate::tools::gen::Distribution;
 use crate::tools::report::Family;
 use std::fmt;
@@ -100,6 +100,7 @@ macro_rules! named {
 
 named!(IndexKind, "index", { Grid => "grid", Brute => "brute" });
 named!(SpecularModel, "specular model", { Phong => "phong", Blinn => "blinn" });
+named!(Rules, "rule set", { Default => "default", Ucla => "ucla" });
 named!(Distribution, "distribution", {
     Uniform => "uniform",
     Mixed => "mixed",
@@ -130,6 +131,7 @@ mod tests {
     fn every_name_parses_back_to_its_value() {
         round_trips::<IndexKind>();
         round_trips::<SpecularModel>();
+        round_trips::<Rules>();
         round_trips::<Distribution>();
         round_trips::<Family>();
     }

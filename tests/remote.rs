@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::thread;
 use std::time::Duration;
 use voxtrace::remote::{self, RemoteConfig, RemoteError};
-use voxtrace::render::{render_scene, RenderOptions};
+use voxtrace::render::{render_scene, RenderOptions, Rules};
 use voxtrace::service::ServiceConfig;
 
 mod support;
@@ -22,6 +22,7 @@ fn config(authority: String, spp: u32, tiles: u32) -> RemoteConfig {
         path: "/render".into(),
         spp,
         depth: None,
+        rules: Rules::Default,
         tiles,
         in_flight: 4,
         tile_timeout: Duration::from_secs(30),
@@ -82,6 +83,35 @@ fn broken_connections_are_retried_and_the_stitched_image_is_the_local_one() {
     assert!(stats.failures.keys().all(|k| k == "broken"), "{stats:?}");
     let worker = server.addr().to_string();
     assert_eq!(stats.workers[&worker].tiles, 9, "{stats:?}");
+}
+
+/// The tiles are rendered by the rule set asked for, not the workers' default.
+#[test]
+fn every_tile_is_rendered_by_the_rules_asked_for() {
+    let server = start(ServiceConfig::default());
+    let text = sample("testImgPlane.txt");
+    let scene = voxtrace::scene::parse(&text).unwrap();
+    let local = |rules| {
+        let options = RenderOptions {
+            rules,
+            ..RenderOptions::default()
+        };
+        render_scene(&scene, &options, &|_| {}).unwrap().image
+    };
+    let size = (scene.camera.width, scene.camera.height);
+    let config = RemoteConfig {
+        rules: Rules::Ucla,
+        ..config(server.addr().to_string(), 1, 4)
+    };
+    let done = remote::render(&config, &text, size, &|_| {}).unwrap();
+    assert!(
+        done.image == local(Rules::Ucla),
+        "the stitched image differs"
+    );
+    assert!(
+        done.image != local(Rules::Default),
+        "the rules make no difference here"
+    );
 }
 
 #[test]

@@ -13,7 +13,7 @@ const figures = $('figures');
 let shownLines = 0;
 let badLine = 0;
 let lastPng = null;      // { blob, url, name }
-let lastRequest = null;  // { text, spp, depth } of the image on show
+let lastRequest = null;  // { text, spp, depth, rules } of the image on show
 let sceneVersion = 0;    // bumped on every change, so a late sample never overwrites newer text
 
 // ---- Editor: line numbers and the highlighted line ----
@@ -173,11 +173,12 @@ function options() {
     input.value = Number.isFinite(n) && input.value !== '' ? Math.min(hi, Math.max(lo, n)) : dflt;
     return Number(input.value);
   };
-  return { text: editor.value, spp: clamp($('spp'), 1, 64, 1), depth: clamp($('depth'), 0, 16, 3) };
+  const rules = $('rules').value === 'ucla' ? 'ucla' : 'default';
+  return { text: editor.value, spp: clamp($('spp'), 1, 64, 1), depth: clamp($('depth'), 0, 16, 3), rules };
 }
 
 function post(req, format) {
-  const params = new URLSearchParams({ format, spp: req.spp, depth: req.depth });
+  const params = new URLSearchParams({ format, spp: req.spp, depth: req.depth, rules: req.rules });
   const type = format === 'ppm' ? 'image/x-portable-pixmap' : 'image/png';
   return fetch(`/render?${params}`, {
     method: 'POST',

@@ -50,6 +50,7 @@ pub fn run(args: &RenderArgs, url: &str) -> Result<(), CliError> {
         },
         spp: args.spp,
         depth: args.depth,
+        rules: args.rules,
         tiles: args.tiling.tiles,
         in_flight: args.tiling.in_flight,
         tile_timeout: Duration::from_millis(args.tiling.tile_timeout_ms),

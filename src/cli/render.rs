@@ -8,7 +8,9 @@ use super::CliError;
 use crate::limits;
 use crate::output::Format;
 use crate::output::Image;
-use crate::render::{render_scene, IndexKind, Region, RenderOptions, Rendered, SpecularModel};
+use crate::render::{
+    render_scene, IndexKind, Region, RenderOptions, Rendered, Rules, SpecularModel,
+};
 use crate::threads::Threads;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -58,6 +60,18 @@ pub struct RenderArgs {
     remote: Option<String>,
     #[command(flatten)]
     pub(super) tiling: super::remote::TilingArgs,
+    /// Which of the course's two key sets to reproduce.
+    #[arg(long, value_parser = choice(rules_help), default_value_t = Rules::default())]
+    pub(super) rules: Rules,
+}
+
+fn rules_help(rules: Rules) -> &'static str {
+    match rules {
+        Rules::Default => "The scene format's rules (the course's newer keys)",
+        Rules::Ucla => {
+            "Outward normals on inside hits, reflected rays cut at t = 1 (the course's older keys)"
+        }
+    }
 }
 
 fn index_help(index: IndexKind) -> &'static str {
@@ -97,6 +111,8 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         specular: args.specular,
         adaptive_cutoff: args.adaptive,
         index: args.index,
+        rules: args.rules,
+        refine: true,
         deadline: None,
         region: args.region,
     };

@@ -28,8 +28,38 @@
 //! size, whatever the scene's coordinates; an index pads each sphere by that
 //! fraction of its radius (see `index::grid::build`), not by the scene's
 //! extent. Deciding costs one comparison of a value the test computes anyway.
+//!
+//! # Hit points on spheres far larger than the point's coordinates
+//! The hit point is `P = C + offset`, each term known to `u` of its size, so
+//! `P` is off by up to `γ(8)·(|C| + |offset|)` per axis (the `error` of a
+//! [`SurfacePoint`]), while f32 can hold `P` itself to `u·|P|`. The two agree
+//! within a few bits for a sphere of ordinary size at an ordinary distance;
+//! they part when the sphere's reach `|C| + |offset|` dwarfs `|P|`: the
+//! classic ground, radius 1000 centred 1001 below the eye, has reach 2000 at
+//! points of size 1–10, so its points are off by ~1e-4 and the spawn offset
+//! that must clear that bound lifts every ray leaving the ground by ~1e-3,
+//! 1% of a ball of radius 0.1 resting on it: reflections and shadow edges
+//! move by a fraction of a pixel. (The planet of `scenes/hard`, reach 1.3e7
+//! at points of size 10–1000, is off by whole units.)
+//!
+//! [`Ellipsoid::precise_surface_point`] recomputes such a hit in f64 — the
+//! same f32 ray, sphere and chosen root, so the index's choice of sphere and
+//! t is untouched — when `|C| + |S| > `[`limits::REFINE_REACH_RATIO`]`·|o + t·d|`
+//! (max-norms; `|S|` bounds `|offset|`, and `o + t·d` is the point as the
+//! ray puts it, known before any point is computed), that is when the sum
+//! would cancel more than 4 bits. The f64
+//! point's own error, `γ₆₄(8)·(|C| + |offset|)`, stays below f32's rounding
+//! of it, `u·|P|`, while the reach is under 6.7e7·|P| (and beyond, as on the
+//! planet's far ground, it is still 6.7e7 times below the f32 point's).
+//! Below the ratio the f32 point is within 16·γ(8)·|P| ≈ 8e-6·|P| of the
+//! surface, about what shading's own f32 vectors carry, and bytes stay what
+//! they were. The test is two max-norms and a comparison. The refined point keeps the f32 bound as its `error`: it
+//! is what the f32 hit test of this surface may be off by, so a ray leaving
+//! it must still clear it ([`super::spawn_origin`] does so along the ray
+//! where it can, which moves no line the ray sees).
 
 use super::{Ray, Real, Vec3Ops, V3};
+use crate::limits;
 use crate::scene::Sphere;
 
 /// An ellipsoid in the precision `R`, with its inverse scale precomputed.
@@ -57,8 +87,13 @@ pub struct SurfacePoint<R: Real> {
     pub normal: V3<R>,
     /// True when the ray hit the surface from inside the ellipsoid.
     pub inside: bool,
-    /// A per-axis bound on the error of `point`, for [`super::spawn_origin`].
+    /// A per-axis bound on the error of `point` as f32 arithmetic finds it:
+    /// the clearance [`super::spawn_origin`] gives a ray leaving it.
     pub error: V3<R>,
+    /// True when `point` and `normal` were recomputed in f64
+    /// ([`Ellipsoid::precise_surface_point`]): `point` is then far nearer
+    /// the surface than `error`.
+    pub refined: bool,
 }
 
 /// The inverse-transformed ray and the closest point of its line to the centre.
@@ -132,6 +167,59 @@ impl<R: Real> Ellipsoid<R> {
         if self.frame().is_far(ray) {
             return self.wide_surface_point(ray, t);
         }
+        self.near_surface_point(ray, t)
+    }
+
+    /// [`Self::surface_point`], recomputed in f64 where the sphere's reach
+    /// dwarfs the point (see the module's notes): bit for bit the plain
+    /// point everywhere else.
+    pub fn precise_surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
+        if !R::NARROW || self.frame().is_far(ray) {
+            return self.surface_point(ray, t);
+        }
+        // Decided before any point is computed: the reach |C| + |offset| is
+        // at most |C| + |S|, and the point is where the ray puts it.
+        let reach = self.center.abs() + self.scale.abs();
+        let ratio = R::from_f64(limits::REFINE_REACH_RATIO);
+        if reach.max_element() <= ratio * ray.at(t).abs().max_element() {
+            return self.near_surface_point(ray, t);
+        }
+        // γ(9) rather than γ(8): |offset| may exceed |S| by an ulp.
+        self.refined_surface_point(ray, t, reach * R::gamma(9))
+    }
+
+    /// The refined point of [`Self::precise_surface_point`], with the bound
+    /// `error` on the plain point's error as its clearance.
+    #[inline(never)]
+    fn refined_surface_point(&self, ray: &Ray<R>, t: R, error: V3<R>) -> SurfacePoint<R> {
+        // The sphere of `scale` itself: `inv_scale` rounded to f32 is off by
+        // up to u of the radius (6e-5 at radius 1000, 0.4 at 6.4e6), which
+        // along a shallow ray moves the point by that over the sine.
+        let exact = self.scale.to_dvec3().recip();
+        let (point, _, outward) = self.wide_point(ray, t, exact);
+        SurfacePoint {
+            refined: true,
+            ..Self::surface(point, outward, ray, error)
+        }
+    }
+
+    /// Whether any hit of this ellipsoid can pass the test of
+    /// [`Self::precise_surface_point`], decided once per sphere: a point `P`
+    /// on it has `|P| ≥ |C| − |S|` (max-norms; the ray's `o + t·d` is off
+    /// by a few ulps of it at most, hence the 1% slack).
+    pub fn may_need_refining(&self) -> bool {
+        let (c, s) = (
+            self.center.abs().max_element(),
+            self.scale.abs().max_element(),
+        );
+        let ratio = R::from_f64(limits::REFINE_REACH_RATIO);
+        (c + s) * R::from_f64(1.01) > ratio * (c - s)
+    }
+
+    /// [`Self::surface_point`] in `R` for a ray from within
+    /// [`Real::NEAR_FRAME`] radii.
+    #[inline]
+    fn near_surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
         let local = self.local(ray);
         let entering = entering(Self::roots(&local), t, -local.b / local.a);
         let (offset, outward) = self.offset_and_normal(&local, entering);
@@ -142,10 +230,20 @@ impl<R: Real> Ellipsoid<R> {
     /// [`Self::surface_point`] computed in f64 and rounded to `R`, for rays
     /// from beyond [`Real::NEAR_FRAME`] radii.
     fn wide_surface_point(&self, ray: &Ray<R>, t: R) -> SurfacePoint<R> {
+        let (point, offset, outward) = self.wide_point(ray, t, self.inv_scale.to_dvec3());
+        // The f64 point's own error is negligible beside its rounding to R.
+        let error = (self.center.abs() + offset.abs()) * R::gamma(2);
+        Self::surface(point, outward, ray, error)
+    }
+
+    /// The point at root `t`, its offset from the centre and the outward
+    /// normal, computed in f64 from the same ray and ellipsoid, intersected
+    /// through the inverse scale `inv_scale`, and rounded to `R`.
+    fn wide_point(&self, ray: &Ray<R>, t: R, inv_scale: glam::DVec3) -> (V3<R>, V3<R>, V3<R>) {
         let wide = Ellipsoid::<f64> {
             center: self.center.to_dvec3(),
             scale: self.scale.to_dvec3(),
-            inv_scale: self.inv_scale.to_dvec3(),
+            inv_scale,
         };
         let local = wide.local(&to_wide(ray));
         let roots = Ellipsoid::<f64>::roots(&local).map(|(near, far, c)| {
@@ -155,9 +253,11 @@ impl<R: Real> Ellipsoid<R> {
         let entering = entering(roots, t, R::from_f64(-local.b / local.a));
         let (offset, outward) = wide.offset_and_normal(&local, entering);
         let point = V3::<R>::from_dvec3(wide.center + offset);
-        // The f64 point's own error is negligible beside its rounding to R.
-        let error = (self.center.abs() + V3::<R>::from_dvec3(offset).abs()) * R::gamma(2);
-        Self::surface(point, V3::<R>::from_dvec3(outward), ray, error)
+        (
+            point,
+            V3::<R>::from_dvec3(offset),
+            V3::<R>::from_dvec3(outward),
+        )
     }
 
     /// The point's offset from the centre and the outward unit normal there,
@@ -181,6 +281,7 @@ impl<R: Real> Ellipsoid<R> {
             normal: if inside { -outward } else { outward },
             inside,
             error,
+            refined: false,
         }
     }
 

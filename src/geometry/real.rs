@@ -14,6 +14,8 @@ pub trait Real: num_traits::Float + Debug + Default + Send + Sync + 'static {
     /// from the centre in radii); beyond it the test runs in f64. See
     /// [`super::ellipsoid`] for why this bounds the test's error.
     const NEAR_FRAME: Self;
+    /// Whether a hit point can be worth recomputing in f64 (false in f64 itself).
+    const NARROW: bool;
     fn from_f64(x: f64) -> Self;
     fn to_f64(self) -> f64;
     /// The next float towards +∞ (−0 and +0 both step to the smallest positive).
@@ -66,11 +68,12 @@ pub trait Vec3Ops<R>:
 pub type V3<R> = <R as Real>::Vec3;
 
 macro_rules! impl_real {
-    ($float:ty, $vec:ty, $near_frame:expr) => {
+    ($float:ty, $vec:ty, $near_frame:expr, $narrow:expr) => {
         impl Real for $float {
             type Vec3 = $vec;
             const UNIT_ROUNDOFF: Self = <$float>::EPSILON * 0.5;
             const NEAR_FRAME: Self = $near_frame;
+            const NARROW: bool = $narrow;
             #[inline]
             fn from_f64(x: f64) -> Self {
                 x as $float
@@ -151,5 +154,5 @@ macro_rules! impl_real {
     };
 }
 
-impl_real!(f32, Vec3, (1u32 << 26) as f32);
-impl_real!(f64, DVec3, f64::INFINITY);
+impl_real!(f32, Vec3, (1u32 << 26) as f32, true);
+impl_real!(f64, DVec3, f64::INFINITY, false);

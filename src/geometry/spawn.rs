@@ -5,11 +5,28 @@
 //! the surface the new ray leaves towards; rounding each coordinate one more
 //! float away makes the move survive the addition itself. Because `error`
 //! scales with the coordinates, this works at every scene scale, with no epsilon.
+//!
+//! A move along the normal shifts the line the new ray follows by up to `d`.
+//! For a point recomputed in f64 ([`SurfacePoint::refined`]) `d` is still
+//! the f32 hit test's uncertainty about the surface (the ray must clear it,
+//! or the test may find the surface again at t ≈ 0), but the point is
+//! exact, so the clearance is taken along the ray instead: travelling
+//! `d / cos θ` along a ray that leaves at angle θ to the normal reaches
+//! distance `d` from the tangent plane, and so from the surface (convex: it
+//! lies behind that plane), and the ray's line is the exact one; only what
+//! lies within that travel of the hit is skipped. For rays leaving at a
+//! grazing angle the travel is capped at [`limits::SPAWN_MAX_TRAVEL`]·`d`
+//! and the rest of `d` taken along the normal, as before.
 
 use super::{Real, SurfacePoint, Vec3Ops, V3};
+use crate::limits;
 
 /// The origin for a ray leaving `surface` in direction `dir`.
+#[inline]
 pub fn spawn_origin<R: Real>(surface: &SurfacePoint<R>, dir: V3<R>) -> V3<R> {
+    if surface.refined {
+        return spawn_along(surface, dir);
+    }
     let n = surface.normal;
     let d = n.abs().dot(surface.error);
     let offset = if dir.dot(n) < R::zero() {
@@ -17,7 +34,28 @@ pub fn spawn_origin<R: Real>(surface: &SurfacePoint<R>, dir: V3<R>) -> V3<R> {
     } else {
         n * d
     };
-    let p = surface.point + offset;
+    away::<R>(surface.point, offset)
+}
+
+/// [`spawn_origin`] for a refined point: a move of clearance `d` from the
+/// tangent plane, along `dir` as far as [`limits::SPAWN_MAX_TRAVEL`]·`d`
+/// allows, the rest along the normal on the side `dir` leaves to.
+#[inline(never)]
+fn spawn_along<R: Real>(surface: &SurfacePoint<R>, dir: V3<R>) -> V3<R> {
+    let n = surface.normal;
+    let d = n.abs().dot(surface.error);
+    let side = if dir.dot(n) < R::zero() { -n } else { n };
+    let unit = dir.normalize();
+    let cos = unit.dot(side).max(R::zero());
+    let travel = (d / cos).min(R::from_f64(limits::SPAWN_MAX_TRAVEL) * d);
+    let rest = (d - travel * cos).max(R::zero());
+    away::<R>(surface.point, unit * travel + side * rest)
+}
+
+/// `p + offset`, each coordinate rounded one more float the way `offset` goes.
+#[inline(always)]
+fn away<R: Real>(p: V3<R>, offset: V3<R>) -> V3<R> {
+    let p = p + offset;
     let away = |p: R, o: R| {
         if o > R::zero() {
             p.next_up()
@@ -87,5 +125,44 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The classic ground, radius 1000 centred 1001 below the eye: its hits
+    /// are refined, their rays leave along themselves, and still never find
+    /// the ground again at t ≈ 0, outward or inward.
+    #[test]
+    fn rays_from_refined_hits_on_a_huge_sphere_clear_it() {
+        let s = Ellipsoid::<f32>::new(Vec3::new(0.0, -1001.0, -8.0), Vec3::splat(1000.0));
+        let mut state = 0x9e37_79b9_u32;
+        let mut rand = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32 * 2.0 - 1.0
+        };
+        let mut refined = 0;
+        for _ in 0..4000 {
+            let dir = Vec3::new(rand() * 0.6, -0.05 - 0.4 * rand().abs(), -1.0);
+            let ray = Ray::new(Vec3::ZERO, dir);
+            let t = s.intersect(&ray, 1.0, f32::INFINITY).expect("the ground");
+            let hit = s.precise_surface_point(&ray, t);
+            refined += usize::from(hit.refined);
+            let bounce = dir.normalize() - hit.normal * (2.0 * dir.normalize().dot(hit.normal));
+            let up = Vec3::new(rand(), rand().abs() + 0.01, rand());
+            for out in [bounce, up] {
+                let origin = spawn_origin(&hit, out);
+                assert_eq!(
+                    s.intersect(&Ray::new(origin, out), 0.0, f32::INFINITY),
+                    None
+                );
+            }
+            let down = -hit.normal + Vec3::new(rand(), 0.0, rand()) * 0.5;
+            let origin = spawn_origin(&hit, down);
+            let t_far = s
+                .intersect(&Ray::new(origin, down), 0.0, f32::INFINITY)
+                .expect("far wall");
+            assert!(t_far * down.length() > 1.0, "re-hit at {t_far}");
+        }
+        assert_eq!(refined, 4000);
     }
 }

@@ -17,8 +17,9 @@ pub use error::RemoteError;
 pub use tiles::plan;
 
 use crate::limits;
+use crate::names::Named;
 use crate::output::Image;
-use crate::render::Region;
+use crate::render::{Region, Rules};
 use std::collections::{BTreeMap, VecDeque};
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
@@ -33,6 +34,8 @@ pub struct RemoteConfig {
     pub path: String,
     pub spp: u32,
     pub depth: Option<u32>,
+    /// The rule set every tile is rendered by.
+    pub rules: Rules,
     /// About how many tiles to cut the frame into.
     pub tiles: u32,
     /// Tile requests in flight at once.
@@ -270,8 +273,10 @@ impl Job<'_> {
     fn attempt(&self, region: &Region) -> Attempt {
         let config = self.config;
         let mut target = format!(
-            "{}?region={region}&format=ppm&spp={}",
-            config.path, config.spp
+            "{}?region={region}&format=ppm&spp={}&rules={}",
+            config.path,
+            config.spp,
+            config.rules.name()
         );
         if let Some(depth) = config.depth {
             target += &format!("&depth={depth}");

@@ -72,6 +72,7 @@ impl PixelSampler {
     /// The pixel's colour from its samples' radiances in sample order: one
     /// sample as it is, more each clamped to [0, 1] first (so that one very
     /// bright sample cannot outweigh the rest) and averaged.
+    #[inline(always)]
     pub fn combine(&self, radiances: impl IntoIterator<Item = DVec3>) -> DVec3 {
         let mut radiances = radiances.into_iter();
         if self.spp == 1 {

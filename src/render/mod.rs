@@ -4,11 +4,13 @@
 mod camera;
 mod deadline;
 mod region;
+mod rules;
 mod shading;
 
 pub use camera::PixelSampler;
 pub use deadline::{CancelToken, Deadline};
 pub use region::{Region, RegionError};
+pub use rules::Rules;
 
 use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{Answered, BruteForce, SphereIndex, VoxelHashGrid};
@@ -54,6 +56,11 @@ pub struct RenderOptions {
     /// Stop recursing once a ray's weight cannot change an 8-bit output value.
     pub adaptive_cutoff: bool,
     pub index: IndexKind,
+    /// Which of the course's two rule sets to follow.
+    pub rules: Rules,
+    /// Recompute in f64 the f32 hit points of spheres whose reach dwarfs
+    /// the point (`geometry::ellipsoid`); no effect in f64.
+    pub refine: bool,
     /// Give up once this instant has passed ([`RenderError::TimedOut`]) or
     /// its token is cancelled ([`RenderError::Cancelled`]).
     pub deadline: Option<Deadline>,
@@ -69,6 +76,8 @@ impl Default for RenderOptions {
             specular: None,
             adaptive_cutoff: false,
             index: IndexKind::default(),
+            rules: Rules::default(),
+            refine: true,
             deadline: None,
             region: None,
         }

@@ -4,7 +4,7 @@
 //! the intersection work, and it keeps the f32/f64 comparison about geometry).
 
 use super::deadline::Stop;
-use super::{RayCounts, RenderOptions, SpecularModel};
+use super::{RayCounts, RenderOptions, Rules, SpecularModel};
 use crate::geometry::{spawn_origin, Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
 use crate::index::{compact_order, Answered, Hit, SphereIndex};
 use crate::limits;
@@ -36,6 +36,11 @@ pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     lights: Vec<(V3<R>, DVec3)>,
     max_depth: u32,
     specular: SpecularModel,
+    rules: Rules,
+    /// Per sphere, whether its hit points are
+    /// [`Ellipsoid::precise_surface_point`]s: empty when the precision rule
+    /// is off, false for a sphere none of whose hits can need it.
+    refine: Vec<bool>,
     /// Smallest weight worth a secondary ray, and how a weight is measured.
     min_weight: f64,
     weight_norm: fn(DVec3) -> f64,
@@ -83,6 +88,8 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             lights,
             max_depth,
             specular: options.specular.unwrap_or(own_specular),
+            rules: options.rules,
+            refine: refinable(shapes, options.refine),
             min_weight,
             weight_norm,
             secondary_miss,
@@ -106,8 +113,20 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
 
     /// The surface point where the eye ray with direction `dir` meets `hit`.
     pub fn eye_surface(&self, dir: V3<R>, hit: Hit<R>) -> SurfacePoint<R> {
-        let ray = Ray::new(V3::<R>::ZERO, dir);
-        self.shapes[hit.sphere as usize].surface_point(&ray, hit.t)
+        self.surface(&Ray::new(V3::<R>::ZERO, dir), hit)
+    }
+
+    /// The surface point where `ray` meets `hit`, the index's choice, with
+    /// the normal shading reads ([`Rules::shading`]).
+    fn surface(&self, ray: &Ray<R>, hit: Hit<R>) -> SurfacePoint<R> {
+        let k = hit.sphere as usize;
+        let shape = &self.shapes[k];
+        let surface = if self.refine.get(k).copied().unwrap_or(false) {
+            shape.precise_surface_point(ray, hit.t)
+        } else {
+            shape.surface_point(ray, hit.t)
+        };
+        self.rules.shading(surface)
     }
 
     /// How many lights shading reads: the length of each hit's row of
@@ -216,10 +235,12 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         }
     }
 
-    /// A reflected or refracted ray, which carries `weight` of the pixel.
+    /// A reflected or refracted ray, which carries `weight` of the pixel,
+    /// and takes the nearest hit beyond `t_min`.
     fn trace_secondary(
         &self,
         ray: &Ray<R>,
+        t_min: R,
         depth: u32,
         weight: DVec3,
         counts: &mut RayCounts,
@@ -227,9 +248,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         if self.stop.now() {
             return DVec3::ZERO;
         }
-        match self.index.closest_hit(ray, R::zero(), R::infinity()) {
+        match self.index.closest_hit(ray, t_min, R::infinity()) {
             Some(hit) => {
-                let surface = self.shapes[hit.sphere as usize].surface_point(ray, hit.t);
+                let surface = self.surface(ray, hit);
                 self.shade_at(ray, hit, &surface, depth, weight, Shadows::Trace, counts)
             }
             None => self.secondary_miss,
@@ -369,10 +390,10 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
             if (self.weight_norm)(next_weight) < self.min_weight || next_weight == DVec3::ZERO {
                 continue;
             }
-            let out = match bounce {
+            let (out, t_min) = match bounce {
                 Bounce::Reflection => {
                     counts.reflection += 1;
-                    reflect::<R>(dir, n)
+                    (reflect::<R>(dir, n), self.rules.reflection_t_min())
                 }
                 Bounce::Refraction => {
                     counts.refraction += 1;
@@ -382,20 +403,16 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                         R::from_f64(m.ior)
                     };
                     // Total internal reflection sends the light back inside, with the same weight.
-                    refract(dir, n, ratio).unwrap_or_else(|| reflect::<R>(dir, n))
+                    let n = self.rules.facing_normal(surface);
+                    let out = refract(dir, n, ratio).unwrap_or_else(|| reflect::<R>(dir, n));
+                    (out, R::zero())
                 }
             };
             let next = Ray::new(spawn_origin(surface, out), out);
-            sum += gain * self.trace_secondary(&next, depth + 1, next_weight, counts);
+            sum += gain * self.trace_secondary(&next, t_min, depth + 1, next_weight, counts);
         }
         sum
     }
-}
-
-/// Whether the material has a direct-light term at all: if not, its hits
-/// need no shadow rays.
-fn takes_direct_light(m: &Material) -> bool {
-    m.diffuse != 0.0 || m.specular != 0.0
 }
 
 /// The unit direction from the surface point to the light at `position`
@@ -406,6 +423,22 @@ fn faces<R: Real>(surface: &SurfacePoint<R>, position: V3<R>) -> Option<(V3<R>, 
     let to_light = (position - surface.point).normalize();
     let n_dot_l = surface.normal.dot(to_light);
     (n_dot_l > R::zero()).then_some((to_light, n_dot_l))
+}
+
+/// Per sphere of `shapes`, whether the precision rule may refine its hits
+/// ([`Ellipsoid::may_need_refining`]); empty when `refine` is off or the
+/// precision is f64 already.
+fn refinable<R: Real>(shapes: &[Ellipsoid<R>], refine: bool) -> Vec<bool> {
+    if !refine || !R::NARROW {
+        return vec![];
+    }
+    shapes.iter().map(Ellipsoid::may_need_refining).collect()
+}
+
+/// Whether the material has a direct-light term at all: if not, its hits
+/// need no shadow rays.
+fn takes_direct_light(m: &Material) -> bool {
+    m.diffuse != 0.0 || m.specular != 0.0
 }
 
 /// Whether any sphere can send light back along a secondary ray, in the

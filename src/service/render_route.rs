@@ -6,9 +6,11 @@ use super::http::{Connection, RequestHead, Response};
 use super::memory_budget::{resident_bytes, Charge};
 use super::{ServiceConfig, State};
 use crate::limits;
+use crate::names::Named;
 use crate::output::Format;
 use crate::render::{
     render_scene, CancelToken, Deadline, Region, RegionError, RenderError, RenderOptions, Rendered,
+    Rules,
 };
 use crate::scene::{self, Scene};
 use std::panic::{self, AssertUnwindSafe};
@@ -36,10 +38,12 @@ pub struct RenderQuery {
     pub depth: Option<u32>,
     /// `region=X0,Y0,X1,Y1`: only that rectangle of the image.
     pub region: Option<Region>,
+    pub rules: Rules,
 }
 
 impl RenderQuery {
-    /// `format=png|ppm`, `spp=N`, `depth=N`, `region=X0,Y0,X1,Y1`; other
+    /// `format=png|ppm`, `spp=N`, `depth=N`, `region=X0,Y0,X1,Y1`,
+    /// `rules=default|ucla`; other
     /// parameters are ignored.
     pub fn parse(query: &str) -> Result<RenderQuery, ApiError> {
         let mut parsed = RenderQuery {
@@ -47,6 +51,7 @@ impl RenderQuery {
             spp: 1,
             depth: None,
             region: None,
+            rules: Rules::default(),
         };
         for pair in query.split('&').filter(|p| !p.is_empty()) {
             let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -72,6 +77,9 @@ impl RenderQuery {
                         .map_err(|e: RegionError| bad_query(e.to_string()))?;
                     parsed.region = Some(region);
                 }
+                "rules" => {
+                    parsed.rules = Rules::from_name(value).map_err(|e| bad_query(e.to_string()))?
+                }
                 _ => {}
             }
         }
@@ -80,13 +88,14 @@ impl RenderQuery {
 }
 
 impl RenderQuery {
-    /// What the renderer is asked for: the query's samples and depth, the
-    /// rest as the library's defaults.
+    /// What the renderer is asked for: the query's samples, depth and
+    /// rules, the rest as the library's defaults.
     fn options(&self) -> RenderOptions {
         RenderOptions {
             spp: self.spp,
             depth: self.depth,
             region: self.region,
+            rules: self.rules,
             ..RenderOptions::default()
         }
     }
@@ -554,15 +563,17 @@ mod tests {
                 spp: 1,
                 depth: None,
                 region: None,
+                rules: Rules::Default,
             }
         );
         assert_eq!(
-            RenderQuery::parse("format=ppm&spp=4&depth=0&x=1").unwrap(),
+            RenderQuery::parse("format=ppm&spp=4&depth=0&rules=ucla&x=1").unwrap(),
             RenderQuery {
                 format: Format::Ppm,
                 spp: 4,
                 depth: Some(0),
                 region: None,
+                rules: Rules::Ucla,
             }
         );
         for bad in [
@@ -574,6 +585,8 @@ mod tests {
             "depth=65",
             "region=1,2,3",
             "region=a,b,c,d",
+            "rules=UCLA",
+            "rules=",
         ] {
             let e = RenderQuery::parse(bad).unwrap_err();
             assert_eq!((e.kind.status(), e.kind.name()), (400, "query"), "{bad}");
@@ -598,6 +611,7 @@ mod tests {
             spp: 4,
             depth: None,
             region: None,
+            rules: Rules::Default,
         };
         let config = ServiceConfig {
             max_pixels: 600 * 600,

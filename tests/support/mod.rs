@@ -4,6 +4,8 @@
 
 #![allow(dead_code)]
 
+pub mod whitted;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{Ipv4Addr, Shutdown, SocketAddr, TcpStream};
 use std::path::Path;

@@ -127,8 +127,13 @@ pub struct Variant {
     pub depth: u32,
     pub cutoff: bool,
     pub index: IndexKind,
+    /// Whether the precision rule refines f32 hit points.
+    pub refine: bool,
     pub against: Against,
 }
+
+/// The f32 variant without the precision rule (plain f32 hit points).
+pub const PLAIN_F32: &str = "f32 without the precision rule";
 
 /// The reference's recursion depth ("deep": every variant's is at most this).
 pub const REFERENCE_DEPTH: u32 = 16;
@@ -147,6 +152,7 @@ impl Variant {
             depth: REFERENCE_DEPTH,
             cutoff: false,
             index: IndexKind::Brute,
+            refine: true,
             against,
         }
     }
@@ -157,6 +163,7 @@ impl Variant {
             depth: Some(self.depth),
             adaptive_cutoff: self.cutoff,
             index: self.index,
+            refine: self.refine,
             ..RenderOptions::default()
         }
     }
@@ -178,6 +185,15 @@ pub fn variants() -> Vec<Variant> {
             Against::Reference,
         ),
         Variant::new(Section::Precision, "f32".into(), F32, Against::Reference),
+        Variant {
+            refine: false,
+            ..Variant::new(
+                Section::Precision,
+                PLAIN_F32.into(),
+                F32,
+                Against::Reference,
+            )
+        },
     ];
     for depth in DEPTHS {
         v.push(Variant {
@@ -389,6 +405,7 @@ fn measure_scene(
             v.cutoff
                 && !u.cutoff
                 && u.section != Section::Index
+                && u.refine == v.refine
                 && (u.precision, u.depth, u.spp, u.index) == (v.precision, v.depth, v.spp, v.index)
         });
         let diff_from_uncut = uncut.map(|u| ImageError::between(&run.image, &runs[u].image));

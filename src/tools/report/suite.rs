@@ -204,7 +204,8 @@ fn palette(i: usize) -> DVec3 {
 }
 
 /// The generated scenes: small enough for a two-core machine, deep enough
-/// that recursion and glass matter.
+/// that recursion and glass matter; each stands on the classic ground, a
+/// sphere of radius 1000, and the last two put balls of radius 0.1 on it.
 pub fn generated() -> Vec<SuiteScene> {
     let light = |x, y, z, i| Light {
         position: DVec3::new(x, y, z),
@@ -275,6 +276,32 @@ pub fn generated() -> Vec<SuiteScene> {
     }
     hall.push(ground());
 
+    // Balls of radius 0.1 resting on the ground, every third a mirror: the
+    // ground's reach (2000) dwarfs its points (1–10), so plain f32 hit
+    // points there are off by ~1e-4, 0.1% of a ball.
+    let mut small_balls = vec![ground()];
+    for i in 0..25 {
+        let (col, row) = ((i % 5) as f64, (i / 5) as f64);
+        let center = DVec3::new(-1.0 + 0.5 * col + 0.1 * row, -0.9, -3.0 - 0.7 * row);
+        let reflect = [0.8, 0.0, 0.3][i % 3];
+        small_balls.push(sphere(center, 0.1, material(palette(i), reflect, 0.0, 1.0)));
+    }
+
+    // Glass over the same ground, small coloured balls behind and under it.
+    let mut glass_floor = vec![ground()];
+    for (i, x) in [-0.8, 0.0, 0.8].into_iter().enumerate() {
+        let ior = [1.0 / 1.5, 1.0 / 1.33, 1.0 / 1.9][i];
+        glass_floor.push(sphere(
+            DVec3::new(x, -0.7, -4.0),
+            0.3,
+            material(DVec3::ONE, 0.1, 0.9, ior),
+        ));
+    }
+    for i in 0..12 {
+        let center = DVec3::new(-1.1 + 0.2 * i as f64, -0.9, -5.0 - 0.15 * (i % 3) as f64);
+        glass_floor.push(sphere(center, 0.1, material(palette(i + 3), 0.0, 0.0, 1.0)));
+    }
+
     vec![
         SuiteScene {
             name: "gen/mirror_grid".into(),
@@ -300,6 +327,21 @@ pub fn generated() -> Vec<SuiteScene> {
                 hall,
                 vec![light(0.0, 4.0, -3.0, 0.8), light(0.0, 0.0, 0.0, 0.3)],
             ),
+        },
+        SuiteScene {
+            name: "gen/huge_floor".into(),
+            family: Family::Generated,
+            scene: classic(
+                240,
+                160,
+                small_balls,
+                vec![light(-3.0, 4.0, 0.0, 0.7), light(4.0, 2.0, -3.0, 0.5)],
+            ),
+        },
+        SuiteScene {
+            name: "gen/glass_on_huge_floor".into(),
+            family: Family::Generated,
+            scene: classic(240, 160, glass_floor, vec![light(1.5, 4.0, 0.0, 0.9)]),
         },
     ]
 }
