@@ -11,18 +11,9 @@ use std::path::Path;
 
 /// Reads and parses the scene at `path`, at most `max_bytes` of it.
 pub fn read_scene(path: &Path, max_bytes: u64) -> Result<Scene, CliError> {
-    let display = path.display().to_string();
-    let cannot_read = |error| CliError::Read {
-        what: display.clone(),
-        error,
-    };
-    let file = File::open(path).map_err(cannot_read)?;
-    let metadata = file.metadata().map_err(cannot_read)?;
-    if metadata.is_file() && metadata.len() > max_bytes {
-        return Err(too_large(&display, max_bytes));
-    }
+    let (file, display) = open_within(path, max_bytes)?;
     scene::read(file, max_bytes).map_err(|e| match e {
-        ReadError::Io(e) => cannot_read(e),
+        ReadError::Io(error) => cannot_read(&display, error),
         ReadError::TooLarge { limit } => too_large(&display, limit),
         ReadError::Scene(error) => CliError::Scene {
             path: display.clone(),
@@ -31,31 +22,15 @@ pub fn read_scene(path: &Path, max_bytes: u64) -> Result<Scene, CliError> {
     })
 }
 
-fn too_large(display: &str, limit: u64) -> CliError {
-    CliError::Refused(Refusal::TooLarge {
-        scene: display.to_owned(),
-        limit,
-    })
-}
-
 /// Reads the scene at `path` whole, at most `max_bytes` of it, and parses
 /// it: the text to send on as it is, and what it says.
 pub fn read_scene_text(path: &Path, max_bytes: u64) -> Result<(Vec<u8>, Scene), CliError> {
     use std::io::Read;
-    let display = path.display().to_string();
-    let cannot_read = |error| CliError::Read {
-        what: display.clone(),
-        error,
-    };
-    let file = File::open(path).map_err(cannot_read)?;
-    let metadata = file.metadata().map_err(cannot_read)?;
-    if metadata.is_file() && metadata.len() > max_bytes {
-        return Err(too_large(&display, max_bytes));
-    }
+    let (file, display) = open_within(path, max_bytes)?;
     let mut text = Vec::new();
     file.take(max_bytes.saturating_add(1))
         .read_to_end(&mut text)
-        .map_err(cannot_read)?;
+        .map_err(|error| cannot_read(&display, error))?;
     if text.len() as u64 > max_bytes {
         return Err(too_large(&display, max_bytes));
     }
@@ -64,4 +39,32 @@ pub fn read_scene_text(path: &Path, max_bytes: u64) -> Result<(Vec<u8>, Scene), 
         error,
     })?;
     Ok((text, scene))
+}
+
+/// The file at `path`, opened, unless it is a regular file larger than
+/// `max_bytes`; and its name for messages.
+fn open_within(path: &Path, max_bytes: u64) -> Result<(File, String), CliError> {
+    let display = path.display().to_string();
+    let file = File::open(path).map_err(|error| cannot_read(&display, error))?;
+    let metadata = file
+        .metadata()
+        .map_err(|error| cannot_read(&display, error))?;
+    if metadata.is_file() && metadata.len() > max_bytes {
+        return Err(too_large(&display, max_bytes));
+    }
+    Ok((file, display))
+}
+
+fn cannot_read(display: &str, error: std::io::Error) -> CliError {
+    CliError::Read {
+        what: display.to_owned(),
+        error,
+    }
+}
+
+fn too_large(display: &str, limit: u64) -> CliError {
+    CliError::Refused(Refusal::TooLarge {
+        scene: display.to_owned(),
+        limit,
+    })
 }

@@ -121,13 +121,17 @@ impl<R: Real> Searching for Groups<R> {
         if self.budget.spent() {
             return u64::MAX;
         }
-        self.groups
-            .iter_mut()
-            .enumerate()
-            .fold(0, |mask, (g, lanes)| {
-                mask | u64::from(std::mem::take(&mut lanes.improved)) << (g * LANES)
-            })
+        take_masks(self.groups.iter_mut().map(|lanes| &mut lanes.improved))
     }
+}
+
+/// The groups' lane masks (one per group, in order) as one mask of the
+/// packet's rays, each left 0.
+#[inline(always)]
+pub(super) fn take_masks<'a>(masks: impl Iterator<Item = &'a mut u32>) -> u64 {
+    masks.enumerate().fold(0, |mask, (g, lanes)| {
+        mask | u64::from(std::mem::take(lanes)) << (g * LANES)
+    })
 }
 
 /// The groups with a ray among `live` (one bit per ray), one bit per group.

@@ -24,7 +24,7 @@
 //! grown by the largest offset.
 
 use super::cone::Cones;
-use super::packet::{groups_of, PacketMailbox, GROUPS, LANES, RAYS};
+use super::packet::{groups_of, take_masks, PacketMailbox, GROUPS, LANES, RAYS};
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
 use super::{Level, Mailbox, TestBudget, Tests, VoxelHashGrid};
@@ -105,12 +105,7 @@ impl<R: Real> Searching for ShadowGroups<R> {
         if self.budget.spent() {
             return u64::MAX;
         }
-        self.groups
-            .iter_mut()
-            .enumerate()
-            .fold(0, |mask, (g, lanes)| {
-                mask | u64::from(std::mem::take(&mut lanes.newly)) << (g * LANES)
-            })
+        take_masks(self.groups.iter_mut().map(|lanes| &mut lanes.newly))
     }
 }
 
