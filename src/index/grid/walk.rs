@@ -334,11 +334,13 @@ impl Level {
         empty: Empty,
     ) -> bool {
         let (shift, r) = (empty.shift, empty.radius);
-        // The cube's first and last cells per axis.
-        let low = c.map(|v| ((v >> shift) - r) << shift);
-        let high = c.map(|v| (((v >> shift) + r + 1) << shift) - 1);
-        // The cube's last cell along each axis's direction of travel.
-        let last = [0, 1, 2].map(|a| if axes.up[a] == 1 { high[a] } else { low[a] });
+        // The cube's last cell along each axis's direction of travel: of
+        // the groups g − r ..= g + r around the walk's group g, the first
+        // cell of the lowest going down, the last cell of the highest going up.
+        let last = [0, 1, 2].map(|a| {
+            let up = axes.up[a];
+            (((c[a] >> shift) + up * (2 * r + 1) - r) << shift) - up
+        });
         let exits = [0, 1, 2].map(|a| self.next_crossing(ray, axes, a, last[a]));
         let a = first_axis(&exits);
         let t_exit = exits[a];
@@ -353,12 +355,7 @@ impl Level {
             } else {
                 // Between the ray's cell and the cube's last along k: only
                 // rounding could put the exit point outside.
-                let (lo, hi) = if axes.up[k] == 1 {
-                    (c[k], high[k])
-                } else {
-                    (low[k], c[k])
-                };
-                self.cell_at(ray, t_exit, k, lo, hi)
+                self.cell_at(ray, t_exit, k, c[k].min(last[k]), c[k].max(last[k]))
             };
             if c[k] < 0 || c[k] >= self.dims[k] {
                 return false;
