@@ -311,6 +311,32 @@ fn to_wide<R: Real>(ray: &Ray<R>) -> Ray<f64> {
     Ray::new(ray.origin.to_dvec3(), ray.dir.to_dvec3())
 }
 
+/// Whether the line `f + t·e` passes so far from the unit sphere that the
+/// robust test ([`Ellipsoid::roots`]) is certain to find it missing: a
+/// filter that skips that test's three divisions on most candidates, and
+/// never changes its answer.
+///
+/// With `a = e·e`, `b = f·e` and `F = f·f`, the line's squared distance
+/// from the centre is `D = F − b²/a`, so `a·F − b² = a·D`. That difference
+/// cancels when the line passes near the centre, but its error is bounded:
+/// each dot product is off by γ(3) of `a`, `F` or `√(a·F)`, so `a·F` and
+/// `b²` are each off by under 7u·a·F and their difference by under 16u·a·F
+/// (u the unit roundoff). Asking `a·F − b² > a·(MARGIN + 32u·F)` therefore
+/// proves `D > MARGIN·(1 − γ(5))`: the line misses the unit sphere by more
+/// than 1.118 radii. The robust test finds the closest point `l` to within
+/// a few u·|f|, under 0.01 radii in the near frame (`|f| ≤ 8192` in f32),
+/// so it sees `|l| > 1` and a negative discriminant. Overflow to ∞ proves
+/// nothing, so an infinite difference is not taken as a miss.
+#[inline(always)]
+fn line_clearly_misses<R: Real>(f: V3<R>, e: V3<R>, f_squared: R) -> bool {
+    let margin = R::from_f64(1.25);
+    let a = e.dot(e);
+    let b = f.dot(e);
+    let distance = a * f_squared - b * b;
+    let bound = a * (margin + f_squared * (R::from_f64(32.0) * R::UNIT_ROUNDOFF));
+    distance > bound && distance < R::infinity()
+}
+
 /// The nearest of two roots (nearer first) in the open interval (t_min, t_max).
 #[inline(always)]
 fn first_in<R: Real>(near: R, far: R, t_min: R, t_max: R) -> Option<R> {
@@ -346,11 +372,15 @@ impl<R: Real> UnitSphereFrame<R> {
     /// [`Ellipsoid::intersect`] (which calls this).
     #[inline]
     pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
-        let local = self.local(ray);
-        if local.f.dot(local.f) > R::NEAR_FRAME {
+        let f = (ray.origin - self.center) * self.inv_scale;
+        let f_squared = f.dot(f);
+        if f_squared > R::NEAR_FRAME {
             return self.intersect_wide(ray, t_min, t_max);
         }
-        let (near, far, _) = Ellipsoid::roots(&local)?;
+        if line_clearly_misses(f, ray.dir * self.inv_scale, f_squared) {
+            return None;
+        }
+        let (near, far, _) = Ellipsoid::roots(&self.local(ray))?;
         first_in(near, far, t_min, t_max)
     }
 
@@ -461,6 +491,86 @@ mod tests {
             }
         }
         assert_eq!((misses_inside, hits_outside), (0, 0));
+    }
+
+    /// Whether the miss filter agrees with the robust test on one ray, and
+    /// whether it fired; `None` when the ray starts outside the near frame.
+    fn filter_and_robust<R: Real>(s: &Ellipsoid<R>, ray: &Ray<R>) -> Option<(bool, bool)> {
+        let frame = s.frame();
+        let f = (ray.origin - frame.center) * frame.inv_scale;
+        let f_squared = f.dot(f);
+        if f_squared > R::NEAR_FRAME {
+            return None;
+        }
+        let filtered = line_clearly_misses(f, ray.dir * frame.inv_scale, f_squared);
+        let robust_misses = Ellipsoid::roots(&frame.local(ray)).is_none();
+        Some((filtered, robust_misses))
+    }
+
+    /// Lines that pass 0.9–1.6 radii from the centre of ellipsoids at random
+    /// extreme scales and positions, seen from 1.5–8192 radii away: whenever
+    /// the filter calls a line a miss, the robust test misses it too, and the
+    /// filter does fire on most lines beyond its margin.
+    fn miss_filter_never_rejects_a_hit<R: Real>() {
+        let mut rng = crate::rng::Rng::new(0x5eed_f11e);
+        let (mut fired, mut beyond_margin, mut hits) = (0u32, 0u32, 0u32);
+        for _ in 0..200_000 {
+            let size = 10f64.powf(rng.range(-6.0, 6.0));
+            let centre = unit_vector(&mut rng) * size * 10f64.powf(rng.range(-3.0, 3.0));
+            let scale = DVec3::new(
+                size * 10f64.powf(rng.range(-1.0, 1.0)),
+                size * 10f64.powf(rng.range(-1.0, 1.0)),
+                size * 10f64.powf(rng.range(-1.0, 1.0)),
+            );
+            let from = unit_vector(&mut rng) * 10f64.powf(rng.range(0.18, 3.9));
+            let pass = unit_vector(&mut rng) * rng.range(0.9, 1.6);
+            let origin = centre + from * scale;
+            let dir = ((pass - from) * scale).normalize();
+            let s = Ellipsoid::<R>::new(V3::<R>::from_dvec3(centre), V3::<R>::from_dvec3(scale));
+            let ray = Ray::new(V3::<R>::from_dvec3(origin), V3::<R>::from_dvec3(dir));
+            let Some((filtered, robust_misses)) = filter_and_robust(&s, &ray) else {
+                continue;
+            };
+            assert!(
+                !filtered || robust_misses,
+                "the filter rejected a hit: centre {centre}, scale {scale}, origin {origin}, dir {dir}"
+            );
+            let local_dir = (pass - from).normalize();
+            let distance = (from - local_dir * from.dot(local_dir)).length();
+            if distance > 1.2 && from.length() < 100.0 {
+                beyond_margin += 1;
+                fired += u32::from(filtered);
+            }
+            hits += u32::from(!robust_misses);
+        }
+        assert!(hits > 10_000, "{hits} hits: the cases must include hits");
+        assert!(
+            fired * 10 > beyond_margin * 9,
+            "the filter fired on {fired} of {beyond_margin} lines beyond its margin"
+        );
+    }
+
+    fn unit_vector(rng: &mut crate::rng::Rng) -> DVec3 {
+        loop {
+            let v = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+
+    #[test]
+    fn miss_filter_never_rejects_a_hit_in_f32() {
+        miss_filter_never_rejects_a_hit::<f32>();
+    }
+
+    #[test]
+    fn miss_filter_never_rejects_a_hit_in_f64() {
+        miss_filter_never_rejects_a_hit::<f64>();
     }
 
     /// Radius 1e-3 at 1e4: both roots lie within an ulp of t, so only which
