@@ -370,7 +370,7 @@ impl<R: Real> UnitSphereFrame<R> {
     }
 
     /// [`Ellipsoid::intersect`] (which calls this).
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
         let f = (ray.origin - self.center) * self.inv_scale;
         let f_squared = f.dot(f);
