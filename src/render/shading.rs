@@ -32,11 +32,10 @@ enum Shadows<'s> {
 #[derive(Clone, Copy)]
 enum Children<'s, R: Real> {
     /// Traced already, with the secondary rays of the hit's neighbours:
-    /// slot 0 is the reflection ray, slot 1 the refraction ray, each a
-    /// position in `traced` where one was sent.
+    /// those of eye ray `eye` of `traced`.
     Known {
         traced: &'s FirstBounces<R>,
-        slots: [Option<u32>; 2],
+        eye: usize,
     },
     /// To be traced one at a time.
     Trace,
@@ -59,8 +58,12 @@ struct Bounced<R: Real> {
 /// hits' do ([`Tracer::eye_shadows`]).
 #[derive(Default)]
 pub(super) struct FirstBounces<R: Real> {
-    /// Per eye ray, where its reflection and refraction rays are.
+    /// Per eye ray, where its reflection (slot 0) and refraction (slot 1)
+    /// rays are, if it sent them.
     slots: Vec<[Option<u32>; 2]>,
+    /// Per eye ray that hit, its hit's own light ([`Tracer::local_light`]),
+    /// which the rays it sends depend on.
+    local: Vec<(DVec3, Option<DVec3>)>,
     hits: Vec<Option<Hit<R>>>,
     surfaces: Vec<Option<SurfacePoint<R>>>,
     /// Row j (one entry per light) says which of hit j's shadow rays are blocked.
@@ -263,7 +266,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         let ray = Ray::new(V3::<R>::ZERO, dir);
         let children = Children::Known {
             traced: bounces,
-            slots: bounces.slots[i],
+            eye: i,
         };
         match hit {
             Some((hit, surface)) => self.shade_at(
@@ -326,7 +329,10 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     ) -> DVec3 {
         let m = &self.scene.spheres[hit.sphere as usize].material;
         let dir = ray.dir.normalize();
-        let (local, open) = self.local_light(surface, m, dir, shadows, counts);
+        let (local, open) = match children {
+            Children::Known { traced, eye } => traced.local[eye],
+            Children::Trace => self.local_light(surface, m, dir, shadows, counts),
+        };
         let sent = self.bounce_rays(dir, surface, m, depth, weight, open);
         let bounced = self.bounces(&sent, depth, children, counts);
         match open {
@@ -494,7 +500,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 continue;
             };
             let traced = match children {
-                Children::Known { traced, slots } => slots[slot].map(|j| (traced, j as usize)),
+                Children::Known { traced, eye } => {
+                    traced.slots[eye][slot].map(|j| (traced, j as usize))
+                }
                 Children::Trace => None,
             };
             let color = match traced {
@@ -553,11 +561,13 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         packed: &mut RayCounts,
     ) -> bool {
         out.slots.clear();
+        out.local.clear();
         out.hits.clear();
         out.surfaces.clear();
         let lights = self.lights.len();
         for (i, (&dir, (hit, surface))) in dirs.iter().zip(hits.iter().zip(surfaces)).enumerate() {
             let mut slots = [None, None];
+            let mut local = (DVec3::ZERO, None);
             if let (Some(hit), Some(surface)) = (hit, surface) {
                 if self.stop.now() {
                     return false;
@@ -565,8 +575,8 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 let m = &self.scene.spheres[hit.sphere as usize].material;
                 let dir = dir.normalize();
                 let shadows = Shadows::Known(&blocked[i * lights..(i + 1) * lights]);
-                let (_, open) = self.local_light(surface, m, dir, shadows, counts);
-                let sent = self.bounce_rays(dir, surface, m, 0, DVec3::ONE, open);
+                local = self.local_light(surface, m, dir, shadows, counts);
+                let sent = self.bounce_rays(dir, surface, m, 0, DVec3::ONE, local.1);
                 for (slot, b) in slots.iter_mut().zip(&sent) {
                     let Some(b) = b else {
                         continue;
@@ -580,6 +590,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 }
             }
             out.slots.push(slots);
+            out.local.push(local);
         }
         let FirstBounces {
             hits,
