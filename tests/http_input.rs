@@ -264,6 +264,17 @@ fn accept_chooses_the_image_type_unless_format_is_given() {
         assert!(reply.body.starts_with(b"P6\n"), "{accept}");
         assert!(reply.body == ppm.body, "{accept}: not the PPM");
     }
+    // Two Accept lines are one list (RFC 9110 §5.3).
+    let two_lines = client.request(
+        "POST",
+        "/render",
+        &["Accept: image/png;q=0", "Accept: */*"],
+        &scene,
+    );
+    assert_eq!(
+        two_lines.header("content-type"),
+        Some("image/x-portable-pixmap")
+    );
     for accept in [
         "image/*",
         "*/*",

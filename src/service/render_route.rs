@@ -122,7 +122,7 @@ impl RenderQuery {
 /// for `100 Continue` is told before it sends its scene.
 pub fn from_head(head: &RequestHead) -> Result<(RenderQuery, Format), ApiError> {
     let query = RenderQuery::parse(&head.query)?;
-    let format = query.image_format(head.header("accept"))?;
+    let format = query.image_format(head.list_header("accept").as_deref())?;
     Ok((query, format))
 }
 
