@@ -116,6 +116,12 @@ pub const INDEX_BUILD_BYTES_PER_SPHERE: usize = 256;
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 /// Most header lines in one request; more is 431.
 pub const MAX_HEADERS: usize = 64;
+/// Most parts of a `multipart/form-data` render body. One (the scene) is
+/// read; the rest are counted only to name them in the refusal, so this
+/// bounds that message, not the work, which the body's size already does.
+pub const MAX_FORM_PARTS: usize = 16;
+/// Most header lines of one form part (curl and browsers send two).
+pub const MAX_PART_HEADERS: usize = 16;
 /// Largest image (width × height) the service renders; larger is 422.
 pub const DEFAULT_MAX_PIXELS: u64 = 4096 * 4096;
 /// Largest number of camera samples (width × height × spp) per request.

@@ -195,6 +195,14 @@ fn handle(
     }
     let wants_continue = length > 0 && head.expects_continue() && !conn.has_pending();
     if wants_continue {
+        // Refused from the head alone: say so instead of asking for the
+        // body, which is then never read, so the connection cannot be reused.
+        if let Some(error) = routes::refusal(head) {
+            return Step::Reply {
+                response: error.into_response(json),
+                keep: false,
+            };
+        }
         let deadline = Instant::now() + state.config.write_timeout;
         if http::write_before(&conn.stream, http::CONTINUE, &[], deadline).is_err() {
             return Step::Gone;

@@ -3,7 +3,9 @@
 //! JSON when the client accepts it. Every kind, its status and its name are
 //! listed in `docs/service-errors.md`; a test keeps the two in step.
 
+use super::accept::NotAcceptable;
 use super::http::Response;
+use super::multipart::FormError;
 use crate::limits;
 use crate::scene::SceneError;
 use std::fmt;
@@ -23,6 +25,8 @@ pub enum ApiErrorKind {
     Query(String),
     /// Not HTTP/1.x, a bad `Content-Length`, or no `Host`.
     BadRequest(String),
+    /// A `multipart/form-data` body that is malformed or not one part.
+    Form(FormError),
     NotFound {
         path: String,
     },
@@ -30,6 +34,8 @@ pub enum ApiErrorKind {
         method: String,
         allow: &'static str,
     },
+    /// `Accept` rules out every type the route sends.
+    NotAcceptable(NotAcceptable),
     /// The head or the body did not arrive within its deadline.
     RequestTimeout {
         what: &'static str,
@@ -86,9 +92,10 @@ impl ApiErrorKind {
     pub fn status(&self) -> u16 {
         use ApiErrorKind::*;
         match self {
-            Scene { .. } | Query(_) | BadRequest(_) => 400,
+            Scene { .. } | Query(_) | BadRequest(_) | Form(_) => 400,
             NotFound { .. } => 404,
             MethodNotAllowed { .. } => 405,
+            NotAcceptable(_) => 406,
             RequestTimeout { .. } => 408,
             LengthRequired(_) => 411,
             BodyTooLarge { .. } => 413,
@@ -116,8 +123,10 @@ impl ApiErrorKind {
             Scene { .. } => "scene",
             Query(_) => "query",
             BadRequest(_) => "bad_request",
+            Form(_) => "form",
             NotFound { .. } => "not_found",
             MethodNotAllowed { .. } => "method_not_allowed",
+            NotAcceptable(_) => "not_acceptable",
             RequestTimeout { .. } => "request_timeout",
             LengthRequired(_) => "length_required",
             BodyTooLarge { .. } => "body_too_large",
@@ -148,6 +157,8 @@ impl fmt::Display for ApiErrorKind {
         match self {
             Scene { message, .. } => write!(f, "{message}"),
             Query(why) | BadRequest(why) | Limit(why) => write!(f, "{why}"),
+            Form(why) => write!(f, "{why}"),
+            NotAcceptable(why) => write!(f, "{why}"),
             NotFound { path } => write!(f, "nothing at {path}"),
             MethodNotAllowed { method, allow } => {
                 write!(f, "{method} is not allowed here (allowed: {allow})")
@@ -286,11 +297,13 @@ mod tests {
             },
             Query("q".into()),
             BadRequest("b".into()),
+            Form(FormError::NoParts),
             NotFound { path: "/x".into() },
             MethodNotAllowed {
                 method: "PUT".into(),
                 allow: "GET",
             },
+            NotAcceptable(crate::service::accept::NotAcceptable),
             RequestTimeout { what: "request" },
             LengthRequired("l"),
             BodyTooLarge { length: 2, max: 1 },

@@ -96,6 +96,18 @@ impl RequestHead {
             .map(|(_, v)| v.as_str())
     }
 
+    /// The values of every header named `name` (lower case) as one list,
+    /// as RFC 9110 §5.3 combines repeated list headers; `None` if there is none.
+    pub fn list_header(&self, name: &str) -> Option<String> {
+        let values: Vec<&str> = self
+            .headers
+            .iter()
+            .filter(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+            .collect();
+        (!values.is_empty()).then(|| values.join(", "))
+    }
+
     /// Whether a `Connection` header lists `token`.
     fn connection_has(&self, token: &str) -> bool {
         self.headers
@@ -122,7 +134,7 @@ impl RequestHead {
 
     /// Whether the client takes a JSON error body.
     pub fn accepts_json(&self) -> bool {
-        self.header("accept")
+        self.list_header("accept")
             .is_some_and(|v| v.to_ascii_lowercase().contains("application/json"))
     }
 
@@ -532,6 +544,7 @@ pub fn reason(status: u16) -> &'static str {
         400 => "Bad Request",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        406 => "Not Acceptable",
         408 => "Request Timeout",
         411 => "Length Required",
         413 => "Content Too Large",
@@ -567,6 +580,19 @@ mod tests {
         assert_eq!(h.body_framing(), BodyFraming::Length(12));
         let h = head("GET http://example.org/healthz HTTP/1.1\r\n\r\n");
         assert_eq!(h.path, "/healthz");
+    }
+
+    #[test]
+    fn repeated_list_headers_are_read_as_one_list() {
+        let h = head("POST / HTTP/1.1\r\nAccept: image/png;q=0\r\nHost: x\r\nACCEPT: */*\r\n\r\n");
+        assert_eq!(
+            h.list_header("accept").as_deref(),
+            Some("image/png;q=0, */*")
+        );
+        assert_eq!(h.header("accept"), Some("image/png;q=0"));
+        assert_eq!(h.list_header("expect"), None);
+        let json = head("GET / HTTP/1.1\r\nAccept: text/plain\r\nAccept: application/json\r\n\r\n");
+        assert!(json.accepts_json());
     }
 
     #[test]

@@ -19,21 +19,28 @@
 //! balancer sends work elsewhere, finishes every render it has admitted,
 //! and only then stops accepting.
 
+mod accept;
 mod admission;
 mod assets;
 mod config;
 mod connection;
 mod error;
+mod header_params;
 mod http;
 mod memory;
 mod memory_budget;
 mod metrics;
+mod multipart;
+mod query;
 mod registry;
 mod render_route;
 mod routes;
+mod scene_body;
 
+pub use accept::NotAcceptable;
 pub use config::{BindError, ConfigError, ServiceConfig};
 pub use error::{ApiError, ApiErrorKind};
+pub use multipart::FormError;
 pub use render_route::{render_request, EncodedRender};
 
 use crate::threads;

@@ -1,9 +1,12 @@
 //! `POST /render`: scene text in, image out, within the service's limits.
 
+use super::accept;
 use super::admission::{BodyCharge, NotAdmitted};
 use super::error::{ApiError, ApiErrorKind};
 use super::http::{Connection, RequestHead, Response};
 use super::memory_budget::{resident_bytes, Charge};
+use super::query;
+use super::scene_body;
 use super::{ServiceConfig, State};
 use crate::limits;
 use crate::names::Named;
@@ -30,10 +33,30 @@ const STOP_GRACE: Duration = Duration::from_millis(100);
 /// The figures of a render, sent as headers and exposed to scripts.
 const FIGURE_HEADERS: &str = "X-Render-Ms, X-Rays, X-Image-Width, X-Image-Height, X-Worker";
 
+/// A query parameter `POST /render` reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Param {
+    Format,
+    Spp,
+    Depth,
+    Region,
+    Rules,
+}
+
+/// The query parameters `POST /render` reads, by name.
+const PARAMETERS: &[(&str, Param)] = &[
+    ("format", Param::Format),
+    ("spp", Param::Spp),
+    ("depth", Param::Depth),
+    ("region", Param::Region),
+    ("rules", Param::Rules),
+];
+
 /// What the query string asks for.
 #[derive(Debug, PartialEq)]
 pub struct RenderQuery {
-    pub format: Format,
+    /// `None`: as `Accept` prefers.
+    pub format: Option<Format>,
     pub spp: u32,
     pub depth: Option<u32>,
     /// `region=X0,Y0,X1,Y1`: only that rectangle of the image.
@@ -43,23 +66,23 @@ pub struct RenderQuery {
 
 impl RenderQuery {
     /// `format=png|ppm`, `spp=N`, `depth=N`, `region=X0,Y0,X1,Y1`,
-    /// `rules=default|ucla`; other
-    /// parameters are ignored.
+    /// `rules=default|ucla`, each at most once; any other name is refused.
     pub fn parse(query: &str) -> Result<RenderQuery, ApiError> {
         let mut parsed = RenderQuery {
-            format: Format::Png,
+            format: None,
             spp: 1,
             depth: None,
             region: None,
             rules: Rules::default(),
         };
-        for pair in query.split('&').filter(|p| !p.is_empty()) {
-            let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
-            match key {
-                "format" => {
+        let params = query::parse(query, PARAMETERS).map_err(|e| bad_query(e.to_string()))?;
+        for (param, value) in params {
+            let value = value.as_str();
+            match param {
+                Param::Format => {
                     parsed.format = match value {
-                        "png" => Format::Png,
-                        "ppm" => Format::Ppm,
+                        "png" => Some(Format::Png),
+                        "ppm" => Some(Format::Ppm),
                         _ => {
                             return Err(bad_query(format!(
                                 "format must be png or ppm, found {value:?}"
@@ -67,24 +90,40 @@ impl RenderQuery {
                         }
                     }
                 }
-                "spp" => parsed.spp = number(key, value, 1, limits::MAX_SPP)?,
-                "depth" => parsed.depth = Some(number(key, value, 0, limits::MAX_DEPTH)?),
-                "region" => {
-                    // The commas may come percent-encoded from a browser.
-                    let value = value.replace("%2C", ",").replace("%2c", ",");
+                Param::Spp => parsed.spp = number("spp", value, 1, limits::MAX_SPP)?,
+                Param::Depth => parsed.depth = Some(number("depth", value, 0, limits::MAX_DEPTH)?),
+                Param::Region => {
                     let region = value
                         .parse()
                         .map_err(|e: RegionError| bad_query(e.to_string()))?;
                     parsed.region = Some(region);
                 }
-                "rules" => {
+                Param::Rules => {
                     parsed.rules = Rules::from_name(value).map_err(|e| bad_query(e.to_string()))?
                 }
-                _ => {}
             }
         }
         Ok(parsed)
     }
+
+    /// The image's type: the one `format=` names, which wins over
+    /// `Accept` (it is the more explicit of the two), else the one `accept`
+    /// prefers (406 if it rules out both).
+    pub fn image_format(&self, accept: Option<&str>) -> Result<Format, ApiError> {
+        match self.format {
+            Some(format) => Ok(format),
+            None => accept::choose(accept).map_err(|e| ApiErrorKind::NotAcceptable(e).into()),
+        }
+    }
+}
+
+/// What a render request's head alone decides: the query and the image's
+/// type, or why the request is refused (400, 406), so that a client asking
+/// for `100 Continue` is told before it sends its scene.
+pub fn from_head(head: &RequestHead) -> Result<(RenderQuery, Format), ApiError> {
+    let query = RenderQuery::parse(&head.query)?;
+    let format = query.image_format(head.list_header("accept").as_deref())?;
+    Ok((query, format))
 }
 
 impl RenderQuery {
@@ -137,22 +176,31 @@ pub fn render_request(
     pool: &rayon::ThreadPool,
 ) -> Result<EncodedRender, ApiError> {
     let query = RenderQuery::parse(query)?;
+    let format = query.image_format(None)?;
     let scene = parse_scene(pool, body)?;
     check_limits(&scene, &query, config)?;
     let options = query.options();
     let rendered = pool
         .install(|| render_scene(&scene, &options, &|_| {}))
         .map_err(render_failed)?;
-    encode(&rendered, query.format)
+    encode(&rendered, format)
 }
 
 /// The scene of a request body, parsed on the render pool: the parser is
 /// parallel, and on the pool it never starts rayon's global pool beside the
 /// service's own (which would put more busy threads than `--threads` on
-/// the cores).
-fn parse_scene(pool: &rayon::ThreadPool, body: &[u8]) -> Result<Scene, ApiError> {
-    pool.install(|| scene::parse(body))
-        .map_err(|e| ApiError::scene(&e))
+/// the cores). A scene that does not parse because its line breaks were
+/// stripped is told so (see [`scene_body::hint`]).
+fn parse_scene(pool: &rayon::ThreadPool, text: &[u8]) -> Result<Scene, ApiError> {
+    pool.install(|| scene::parse(text)).map_err(|e| {
+        let mut error = ApiError::scene(&e);
+        if let (ApiErrorKind::Scene { message, .. }, Some(hint)) =
+            (&mut error.kind, scene_body::hint(text))
+        {
+            *message = format!("{message}\n{hint}");
+        }
+        error
+    })
 }
 
 /// The answer to a render that returned an error of its own: an option it
@@ -269,7 +317,8 @@ pub fn handle(
     charge: BodyCharge,
 ) -> Result<Option<Response>, ApiError> {
     let config = &state.config;
-    let query = RenderQuery::parse(&head.query)?;
+    let (query, format) = from_head(head)?;
+    let text = scene_body::scene_text(head, &body).map_err(ApiErrorKind::Form)?;
     if state.draining() {
         return Err(ApiErrorKind::Draining.into());
     }
@@ -302,16 +351,16 @@ pub fn handle(
     // is held (the waiting requests hold only their bodies, within their
     // budget), and a waiting request is never stuck in a parse queued on
     // the busy render pool, where its client's leaving would go unseen.
-    let scene = parse_scene(&state.pool, &body)?;
+    let scene = parse_scene(&state.pool, text)?;
     drop((body, charge));
     check_limits(&scene, &query, config)?;
     let region = query.region_of(&scene)?;
-    let held = charge_render(state, &scene, &region, query.format)?;
+    let held = charge_render(state, &scene, &region, format)?;
     if budget.spent() {
         return Err(budget.stopped(state));
     }
     let options = query.options();
-    let name = download_name(&scene, query.format);
+    let name = download_name(&scene, format);
     let started = Instant::now();
     let watched = watched_render(state, conn, may_probe, scene, options, held, &budget);
     // The render has stopped (or, stopped but stuck under another render's
@@ -329,7 +378,7 @@ pub fn handle(
     };
     let elapsed = started.elapsed();
     state.metrics.render(elapsed, rendered.stats.rays.total());
-    let encoded = encode(&rendered, query.format)?;
+    let encoded = encode(&rendered, format)?;
     drop(rendered);
     // Only the encoded image is held from here until it is written.
     held.shrink_to(encoded.bytes.len() as u64);
@@ -363,6 +412,7 @@ fn image_response(
             format!("inline; filename=\"{name}\""),
         )
         .with_header("Cache-Control", "no-store")
+        .with_header("Vary", "Accept")
         .with_header("X-Render-Ms", format_ms(elapsed))
         .with_header("X-Rays", rays.to_string())
         .with_header("X-Image-Width", width.to_string())
@@ -559,7 +609,7 @@ mod tests {
         assert_eq!(
             RenderQuery::parse("").unwrap(),
             RenderQuery {
-                format: Format::Png,
+                format: None,
                 spp: 1,
                 depth: None,
                 region: None,
@@ -567,9 +617,9 @@ mod tests {
             }
         );
         assert_eq!(
-            RenderQuery::parse("format=ppm&spp=4&depth=0&rules=ucla&x=1").unwrap(),
+            RenderQuery::parse("format=ppm&spp=4&depth=0&rules=ucla").unwrap(),
             RenderQuery {
-                format: Format::Ppm,
+                format: Some(Format::Ppm),
                 spp: 4,
                 depth: Some(0),
                 region: None,
@@ -607,7 +657,7 @@ mod tests {
     fn limits_are_checked_before_rendering() {
         let scene = scene::parse(include_bytes!("../../scenes/testSample.txt")).unwrap();
         let query = RenderQuery {
-            format: Format::Png,
+            format: None,
             spp: 4,
             depth: None,
             region: None,

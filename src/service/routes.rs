@@ -36,6 +36,28 @@ pub fn answered_from_reserve(head: &RequestHead) -> bool {
         && matches!(head.path.as_str(), "/healthz" | "/metrics")
 }
 
+/// Why the request will be refused, if its head alone says so: no such
+/// path (404), a method the path does not take (405), or a render's query
+/// or `Accept` refused (400, 406). Asked before a `100 Continue` goes out,
+/// so a client is not told to send a body only to have it refused.
+pub fn refusal(head: &RequestHead) -> Option<ApiError> {
+    let method = head.method.as_str();
+    let path = head.path.as_str();
+    if path == "/render" {
+        return match method {
+            "POST" => render_route::from_head(head).err(),
+            _ => Some(method_not_allowed(method, "POST")),
+        };
+    }
+    if resource(path).is_none() {
+        return Some(not_found(path));
+    }
+    match method {
+        "GET" | "HEAD" => None,
+        _ => Some(method_not_allowed(method, GET_HEAD)),
+    }
+}
+
 /// Answers one request whose body has been received: `scene` holds it
 /// (with its charge against the body budget) when [`takes_scene`].
 /// `Ok(None)`: the client left before there was anything to say.
@@ -45,23 +67,22 @@ pub fn dispatch(
     head: &RequestHead,
     scene: Option<(Vec<u8>, BodyCharge)>,
 ) -> Result<Option<Response>, ApiError> {
-    let method = head.method.as_str();
-    let path = head.path.as_str();
-    if path == "/render" {
-        return match scene {
-            Some((text, charge)) => render_route::handle(state, conn, head, text, charge),
-            None => Err(method_not_allowed(method, "POST")),
-        };
+    if let Some(refused) = refusal(head) {
+        return Err(refused);
     }
-    let found = get_resource(state, path).ok_or_else(|| {
-        ApiError::from(ApiErrorKind::NotFound {
-            path: path.to_owned(),
-        })
-    })?;
-    match method {
-        "GET" | "HEAD" => Ok(Some(found)),
-        _ => Err(method_not_allowed(method, GET_HEAD)),
+    match scene {
+        Some((text, charge)) => render_route::handle(state, conn, head, text, charge),
+        None => resource(&head.path)
+            .map(|found| Some(get_resource(state, found)))
+            .ok_or_else(|| not_found(&head.path)),
     }
+}
+
+fn not_found(path: &str) -> ApiError {
+    ApiErrorKind::NotFound {
+        path: path.to_owned(),
+    }
+    .into()
 }
 
 fn method_not_allowed(method: &str, allow: &'static str) -> ApiError {
@@ -72,21 +93,41 @@ fn method_not_allowed(method: &str, allow: &'static str) -> ApiError {
     .into()
 }
 
-/// The resources that answer GET (and HEAD).
-fn get_resource(state: &State, path: &str) -> Option<Response> {
+/// What answers a GET (or HEAD).
+enum Resource {
+    Health,
+    Metrics,
+    SceneList,
+    Scene(&'static [u8]),
+    Asset(&'static assets::Asset),
+}
+
+/// The resource at `path`, if any.
+fn resource(path: &str) -> Option<Resource> {
+    Some(match path {
+        "/healthz" => Resource::Health,
+        "/metrics" => Resource::Metrics,
+        "/scenes" => Resource::SceneList,
+        _ => match path.strip_prefix("/scenes/") {
+            Some(name) => Resource::Scene(assets::scene(name)?),
+            None => Resource::Asset(assets::page_asset(path)?),
+        },
+    })
+}
+
+/// The answer of a GET (and HEAD).
+fn get_resource(state: &State, resource: Resource) -> Response {
     let text = |body: String| Response::new(200, "text/plain; charset=utf-8", body);
-    let response = match path {
+    let response = match resource {
         // A draining service is alive but wants no more work: a load
         // balancer or monitor that asks takes it out of rotation.
-        "/healthz" if state.draining() => {
-            return Some(
-                Response::new(503, "text/plain; charset=utf-8", "draining\n")
-                    .with_header("Cache-Control", "no-store")
-                    .with_header("Retry-After", crate::limits::RETRY_AFTER_S.to_string()),
-            )
+        Resource::Health if state.draining() => {
+            return Response::new(503, "text/plain; charset=utf-8", "draining\n")
+                .with_header("Cache-Control", "no-store")
+                .with_header("Retry-After", crate::limits::RETRY_AFTER_S.to_string())
         }
-        "/healthz" => text("ok\n".into()),
-        "/metrics" => Response::new(
+        Resource::Health => text("ok\n".into()),
+        Resource::Metrics => Response::new(
             200,
             "text/plain; version=0.0.4; charset=utf-8",
             state.metrics.render_text(Gauges {
@@ -97,19 +138,12 @@ fn get_resource(state: &State, path: &str) -> Option<Response> {
                 resident_bytes: resident_bytes(),
             }),
         ),
-        "/scenes" => Response::new(200, "application/json", assets::scene_list_json()),
-        _ => {
-            if let Some(name) = path.strip_prefix("/scenes/") {
-                let scene = assets::scene(name)?;
-                Response::new(200, "text/plain; charset=utf-8", scene)
-            } else {
-                let asset = assets::page_asset(path)?;
-                return Some(
-                    Response::new(200, asset.content_type, asset.body)
-                        .with_header("Cache-Control", "no-cache"),
-                );
-            }
+        Resource::SceneList => Response::new(200, "application/json", assets::scene_list_json()),
+        Resource::Scene(scene) => Response::new(200, "text/plain; charset=utf-8", scene),
+        Resource::Asset(asset) => {
+            return Response::new(200, asset.content_type, asset.body)
+                .with_header("Cache-Control", "no-cache")
         }
     };
-    Some(response.with_header("Cache-Control", "no-store"))
+    response.with_header("Cache-Control", "no-store")
 }
