@@ -2,7 +2,7 @@
 
 use super::report::LoadReport;
 use super::units;
-use super::LoadConfig;
+use super::{LoadConfig, Until};
 use std::fmt;
 
 /// A report with the configuration that produced it.
@@ -48,13 +48,16 @@ impl TextReport<'_> {
 
     fn requests(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let r = self.report;
-        writeln!(
-            f,
-            "requests   {} in {} = {:.1} req/s",
-            r.requests,
-            units::duration(r.elapsed),
-            r.requests_per_s()
-        )?;
+        let (requests, elapsed) = (r.requests, units::duration(r.elapsed));
+        match r.successes() {
+            0 => writeln!(f, "requests   {requests} in {elapsed}, none succeeded")?,
+            ok => writeln!(
+                f,
+                "requests   {requests} in {elapsed} = {:.1} req/s, {ok} succeeded ({:.1}%)",
+                r.requests_per_s(),
+                100.0 * ok as f64 / requests as f64
+            )?,
+        }
         if let (Some(rate), Some(send_rate)) = (r.rate, r.send_rate) {
             writeln!(
                 f,
@@ -63,13 +66,15 @@ impl TextReport<'_> {
                 r.scheduled
             )?;
         }
-        writeln!(
-            f,
-            "           {} unfinished (no answer by the end of the {} grace), {} not sent",
-            r.unfinished,
-            units::duration(r.grace),
-            r.not_sent
-        )?;
+        if let Until::Elapsed(_) = self.config.until {
+            writeln!(
+                f,
+                "           {} unfinished (no answer by the end of the {} grace), {} not sent",
+                r.unfinished,
+                units::duration(r.grace),
+                r.not_sent
+            )?;
+        }
         if r.renders > 0 {
             writeln!(
                 f,

@@ -173,3 +173,98 @@ impl LoadReport {
         status.into_iter().chain(error).collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tools::load::exchange::{Failure, TransportError};
+    use crate::tools::load::report::{Facts, Outcome, Sample, Tally};
+    use std::time::{Duration, Instant};
+
+    fn sample(outcome: Outcome) -> Sample {
+        Sample {
+            outcome,
+            latency: Duration::from_millis(1),
+            bytes: 0,
+            rays: 0,
+            missing_retry_after: false,
+        }
+    }
+
+    /// A report of requests that ended with `statuses` and `errors`.
+    fn report(statuses: &[u16], errors: &[TransportError], send_rate: Option<f64>) -> LoadReport {
+        let now = Instant::now();
+        let mut tally = Tally::default();
+        for &status in statuses {
+            tally.answered(sample(Outcome::Status(status)), b"bad scene", now);
+        }
+        for &error in errors {
+            let failure = Failure {
+                error,
+                detail: "refused".into(),
+            };
+            tally.failed(sample(Outcome::Error(error)), &failure, now);
+        }
+        let sent = (statuses.len() + errors.len()) as u64;
+        let facts = Facts {
+            started: now,
+            window: Duration::from_secs(1),
+            grace: Duration::from_secs(1),
+            scheduled: sent,
+            sent,
+            connections: 1,
+            send_rate,
+        };
+        LoadReport::new(vec![tally], facts, send_rate.map(|_| 100.0))
+    }
+
+    #[test]
+    fn nothing_succeeded_fails_and_only_client_errors_blame_the_input() {
+        let failure = report(&[400, 400, 405], &[], None).verdict().unwrap_err();
+        assert!(failure.is_input_error());
+        assert_eq!(
+            failure.to_string(),
+            "no request succeeded: 2 answered 400, 1 answered 405\n  400: \"bad scene\""
+        );
+        for (statuses, errors) in [
+            (&[503, 400][..], &[][..]),
+            (&[429][..], &[][..]),
+            (&[400][..], &[TransportError::Connect][..]),
+            (&[][..], &[TransportError::Connect][..]),
+        ] {
+            let failure = report(statuses, errors, None).verdict().unwrap_err();
+            assert!(!failure.is_input_error(), "{failure}");
+        }
+        let failure = report(&[], &[TransportError::Connect; 3], None)
+            .verdict()
+            .unwrap_err();
+        assert_eq!(
+            failure.to_string(),
+            "no request succeeded: 3 connect errors\n  connect: refused"
+        );
+    }
+
+    #[test]
+    fn transport_errors_fail_a_run_only_past_half() {
+        let closed = TransportError::Closed;
+        assert_eq!(report(&[200, 200], &[closed; 2], None).verdict(), Ok(()));
+        let failure = report(&[200, 200], &[closed; 3], None)
+            .verdict()
+            .unwrap_err();
+        assert_eq!(
+            failure.to_string(),
+            "3 of 5 requests failed below HTTP\n  closed: refused"
+        );
+    }
+
+    #[test]
+    fn the_open_loop_warns_below_its_share_of_the_rate() {
+        let short = report(&[200], &[], Some(50.0)).shortfall(4).unwrap();
+        assert_eq!((short.offered, short.achieved), (100.0, 50.0));
+        assert!(short
+            .to_string()
+            .starts_with("warning: sent 50.0 req/s of the 100 req/s offered"));
+        assert_eq!(report(&[200], &[], Some(96.0)).shortfall(4), None);
+        assert_eq!(report(&[200], &[], None).shortfall(4), None);
+    }
+}
