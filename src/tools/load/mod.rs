@@ -184,7 +184,8 @@ fn prepare(
 /// finish or for the end of the grace, and stops what is left then.
 fn drive<'s, 'e>(s: &'s Scope<'s, 'e>, run: &'s Run<'e>) {
     if run.config.progress && io::stderr().is_terminal() {
-        s.spawn(|| show_progress(run));
+        // Without it the run goes on, silently.
+        drop(Builder::new().spawn_scoped(s, || show_progress(run)));
     }
     for _ in 0..run.config.concurrency {
         let Some(ticket) = run.schedule.take() else {

@@ -113,17 +113,20 @@ mod tests {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = listener.local_addr().unwrap();
         let stop = Stop::default();
+        // A read the stop did not cut would wait for the peer, which never
+        // writes or closes here: it fails at the timeout instead.
+        let patience = Some(Duration::from_secs(30));
         let first = TcpStream::connect(addr).unwrap();
+        first.set_read_timeout(patience).unwrap();
         let _peer = listener.accept().unwrap();
         stop.register(0, &first).unwrap();
         std::thread::scope(|s| {
             let reader = s.spawn(|| (&first).read(&mut [0; 16]));
             stop.now();
-            // A read the stop did not cut would block until the peer closes,
-            // which it never does here.
             assert_eq!(reader.join().unwrap().unwrap(), 0);
         });
         let later = TcpStream::connect(addr).unwrap();
+        later.set_read_timeout(patience).unwrap();
         stop.register(1, &later).unwrap();
         assert_eq!((&later).read(&mut [0; 16]).unwrap(), 0);
     }
