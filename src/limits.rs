@@ -176,3 +176,29 @@ pub const MAX_REMOTE_ERROR_BYTES: usize = 64 * 1024;
 /// How long a worker told to stop (SIGTERM, SIGINT) may take to finish the
 /// renders it has admitted: its queue wait, render and write all fit.
 pub const DEFAULT_DRAIN_TIMEOUT_MS: u64 = DEFAULT_TILE_TIMEOUT_MS;
+
+// ---- The load generator (`voxtrace load`). ----
+
+/// How long requests still in flight when a run's window closes may take
+/// to finish before they count as unfinished (`--grace`). A render of the
+/// bundled samples takes tens of milliseconds; one queued behind a full
+/// service can take longer and is what the grace must not wait out, since
+/// the run's whole point is the window.
+pub const DEFAULT_LOAD_GRACE_MS: u64 = 1_000;
+/// Connections the open loop may open (`--max-connections`): half of a
+/// service's default per-peer cap ([`DEFAULT_MAX_CONNECTIONS_PER_PEER`]),
+/// so a run from one host never meets the cap's refusals, and enough for
+/// 500 requests/s that each take half a second.
+pub const DEFAULT_LOAD_MAX_CONNECTIONS: usize = DEFAULT_MAX_CONNECTIONS_PER_PEER / 2;
+/// Below this share of its offered rate, the open loop warns that it fell short.
+pub const LOAD_MIN_SEND_RATE_SHARE: f64 = 0.95;
+/// Above this share of transport errors among its requests, a run fails
+/// even if some succeeded: the figures are then the network's, not the service's.
+pub const LOAD_MAX_TRANSPORT_ERROR_SHARE: f64 = 0.5;
+/// How much of an error body the report shows for each status: enough
+/// for the service's one-line messages.
+pub const LOAD_ERROR_BODY_BYTES: usize = 200;
+/// Buckets of the text report's latency histogram (as oha draws it).
+pub const LOAD_HISTOGRAM_BUCKETS: usize = 11;
+/// Width of the fullest bucket's bar, in characters.
+pub const LOAD_HISTOGRAM_BAR: usize = 32;

@@ -1,7 +1,8 @@
 //! `voxtrace load`.
 
 use super::CliError;
-use crate::tools::load::{self, LoadConfig, Until, Url};
+use crate::limits::{DEFAULT_LOAD_GRACE_MS, DEFAULT_LOAD_MAX_CONNECTIONS};
+use crate::tools::load::{self, LoadConfig, TextReport, Until, Url};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -14,9 +15,12 @@ pub struct LoadArgs {
     /// Scene file to POST as the body; without it, requests are GETs.
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// Connections (closed loop: requests in flight).
+    /// Connections: closed loop, requests in flight; open loop, connections to start with.
     #[arg(long, short, default_value_t = 1)]
     concurrency: usize,
+    /// Open loop: most connections to open, one more whenever a request falls due with all busy.
+    #[arg(long, default_value_t = DEFAULT_LOAD_MAX_CONNECTIONS)]
+    max_connections: usize,
     /// How long to run, e.g. 30s or 500ms (default 10s unless --requests).
     #[arg(long, short, conflicts_with = "requests")]
     duration: Option<String>,
@@ -26,6 +30,9 @@ pub struct LoadArgs {
     /// Requests per second on a fixed schedule (open loop); latency counts from each request's due time.
     #[arg(long, short)]
     rate: Option<f64>,
+    /// With --duration: how long requests in flight at its end may take to finish before they count as unfinished.
+    #[arg(long, default_value_t = format!("{DEFAULT_LOAD_GRACE_MS}ms"))]
+    grace: String,
     /// Longest wait for one response, e.g. 30s.
     #[arg(long, default_value = "30s")]
     timeout: String,
@@ -38,7 +45,38 @@ pub struct LoadArgs {
     in_process: bool,
 }
 
+/// Runs the load, prints the report, warns when the open loop fell short
+/// of its rate, and fails when the run did (nothing succeeded, or
+/// transport errors dominated).
 pub fn run(args: LoadArgs) -> Result<(), CliError> {
+    let config = config(&args)?;
+    let report = load::run(&config).map_err(CliError::Load)?;
+    let text = if args.json {
+        report.to_json(&config).to_string()
+    } else {
+        TextReport {
+            report: &report,
+            config: &config,
+        }
+        .to_string()
+    };
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        // A closed pipe (`| head`) is the reader's choice, not a failure.
+        Err(error) if error.kind() != std::io::ErrorKind::BrokenPipe => {
+            return Err(CliError::Write {
+                what: "the report".into(),
+                error,
+            })
+        }
+        _ => {}
+    }
+    if let Some(shortfall) = report.shortfall(config.max_connections()) {
+        eprintln!("voxtrace: {shortfall}");
+    }
+    report.verdict().map_err(CliError::LoadFailed)
+}
+
+fn config(args: &LoadArgs) -> Result<LoadConfig, CliError> {
     let url = Url::parse(&args.url).map_err(CliError::Url)?;
     let body = match &args.scene {
         Some(path) => Some(std::fs::read(path).map_err(|error| CliError::Read {
@@ -47,45 +85,22 @@ pub fn run(args: LoadArgs) -> Result<(), CliError> {
         })?),
         None => None,
     };
+    let duration = |text: &str| load::parse_duration(text).map_err(CliError::Duration);
     let until = match (args.requests, &args.duration) {
         (Some(n), _) => Until::Requests(n),
-        (None, Some(d)) => Until::Elapsed(load::parse_duration(d).map_err(CliError::Duration)?),
+        (None, Some(d)) => Until::Elapsed(duration(d)?),
         (None, None) => Until::Elapsed(Duration::from_secs(10)),
     };
-    let config = LoadConfig {
+    Ok(LoadConfig {
         url,
         body,
         concurrency: args.concurrency,
+        max_connections: args.max_connections,
         until,
         rate: args.rate,
-        timeout: load::parse_duration(&args.timeout).map_err(CliError::Duration)?,
+        grace: duration(&args.grace)?,
+        timeout: duration(&args.timeout)?,
         in_process: args.in_process,
         progress: !args.json,
-    };
-    let report = load::run(&config).map_err(CliError::Load)?;
-    let text = if args.json {
-        report.to_json(&config).to_string()
-    } else {
-        let mode = match config.rate {
-            Some(rate) => format!("open loop at {rate} req/s"),
-            None => "closed loop".to_owned(),
-        };
-        let target = if config.in_process {
-            "in process".to_owned()
-        } else {
-            args.url.clone()
-        };
-        format!(
-            "target    {target}  ({mode}, {} connections)\n{report}",
-            config.concurrency
-        )
-    };
-    match writeln!(std::io::stdout().lock(), "{text}") {
-        // A closed pipe (`| head`) is the reader's choice, not a failure.
-        Err(error) if error.kind() != std::io::ErrorKind::BrokenPipe => Err(CliError::Write {
-            what: "the report".into(),
-            error,
-        }),
-        _ => Ok(()),
-    }
+    })
 }

@@ -79,6 +79,8 @@ pub enum CliError {
     Url(crate::tools::load::UrlError),
     Duration(crate::tools::load::DurationError),
     Load(crate::tools::load::LoadError),
+    /// A load run went to its end, but failed as a whole.
+    LoadFailed(crate::tools::load::RunFailure),
     Serve(crate::service::BindError),
     Remote(crate::remote::RemoteError),
     /// The service stopped serving.
@@ -110,6 +112,7 @@ impl CliError {
                 | LoadError::InProcessWithoutScene => true,
                 LoadError::Resolve { .. } | LoadError::NoAddress(_) | LoadError::Pool(_) => false,
             },
+            CliError::LoadFailed(failure) => failure.is_input_error(),
             CliError::Serve(e) => match e {
                 BindError::Config(_) | BindError::Resolve { .. } | BindError::NoAddress(_) => true,
                 BindError::Listen { .. } | BindError::Pool(_) => false,
@@ -136,6 +139,7 @@ impl fmt::Display for CliError {
             CliError::Url(e) => write!(f, "{e}"),
             CliError::Duration(e) => write!(f, "{e}"),
             CliError::Load(e) => write!(f, "{e}"),
+            CliError::LoadFailed(e) => write!(f, "{e}"),
             CliError::Serve(e) => write!(f, "{e}"),
             CliError::Remote(e) => write!(f, "{e}"),
             CliError::Serving(e) => write!(f, "the service stopped: {e}"),

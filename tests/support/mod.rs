@@ -4,6 +4,7 @@
 
 #![allow(dead_code)]
 
+pub mod scripted;
 pub mod whitted;
 
 use std::io::{BufRead, BufReader, Read, Write};
