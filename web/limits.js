@@ -1,0 +1,28 @@
+// The bounds and defaults of src/limits.rs that the page needs before it asks the
+// server, so that a bad field gets its message at once. The server stays the
+// authority; a unit test in src/service/assets.rs keeps these equal to it.
+export const MAX_SPP = 1024;
+export const MAX_DEPTH = 64;
+export const DEFAULT_SPP = 1;
+export const DEFAULT_CLASSIC_DEPTH = 3;
+export const DEFAULT_BROWSER_DEPTH = 16;
+// The server calls a text binary when one of its first BINARY_SNIFF_BYTES holds a
+// control byte; the page reads that much of a file to refuse it the same way.
+export const BINARY_SNIFF_BYTES = 8 * 1024;
+
+// The page's own tunables.
+// About this many tiles per image: enough for a progress bar that moves, few
+// enough that parsing the scene once per tile stays a small part of the work.
+export const TARGET_TILES = 24;
+// Tiles are squares with a side that is a multiple of this (the renderer's block).
+export const TILE_STEP = 32;
+// Tile requests at once: the server has few render slots (4 by default) and
+// each render is already parallel, so more would only queue and hold memory.
+export const TILES_IN_FLIGHT = 2;
+// A tile answered 503 (the server is busy) is asked again this many times in
+// all, after the server's Retry-After, before the render gives up.
+export const TILE_ATTEMPTS = 4;
+// When a 503 carries no Retry-After.
+export const RETRY_AFTER_DEFAULT_MS = 1000;
+// How often the elapsed time on screen is updated while a render runs.
+export const CLOCK_TICK_MS = 100;
