@@ -35,8 +35,9 @@ function clearError() {
 
 // ---- Scene text, samples and files ----
 
-function setScene(text, source) {
+function setScene(text, source, sample = '') {
   editor.set(text);
+  $('sample').value = sample;
   $('source').textContent = source ? `Showing ${source}.` : '';
   clearError();
   showDefaults();
@@ -74,7 +75,8 @@ async function loadSamples() {
     const res = await fetch('/scenes', { headers: { Accept: 'application/json' } });
     if (!res.ok) throw new Error(`${res.status}`);
     const scenes = await res.json();
-    select.replaceChildren(...scenes.map((s) => new Option(`${s.name} (${s.bytes} bytes)`, s.name)));
+    const choices = scenes.map((s) => new Option(`${s.name} (${s.bytes} bytes)`, s.name));
+    select.replaceChildren(new Option('Choose a sample…', ''), ...choices);
     const preferred = scenes.find((s) => s.name === 'testSample.txt') || scenes[0];
     if (preferred && !editor.text) {
       select.value = preferred.name;
@@ -93,7 +95,7 @@ async function loadSample(name) {
     const res = await fetch(`/scenes/${encodeURIComponent(name)}`);
     if (!res.ok) throw new Error(`${res.status} ${res.statusText}`);
     const text = await res.text();
-    if (version === editor.version) setScene(text, name);
+    if (version === editor.version) setScene(text, name, name);
   } catch (err) {
     showError(`Could not load sample ${name}: ${err.message}`);
   }

@@ -46,6 +46,16 @@ const SLOW_SPP = '1024';
 let server;
 let context;
 
+// VOXTRACE_WEB_DIR=DIR serves the page's files from DIR instead of from the
+// binary: to try a change to web/ without a rebuild, or an older page.
+async function servePageFrom(dir) {
+  const types = { '.html': 'text/html', '.js': 'text/javascript', '.css': 'text/css' };
+  await context.route(/\/([a-z-]+\.(js|css))?$/, (route) => {
+    const name = new URL(route.request().url()).pathname.slice(1) || 'index.html';
+    route.fulfill({ body: readFileSync(path.join(dir, name)), contentType: types[path.extname(name)] });
+  });
+}
+
 before(async () => {
   mkdirSync(artifacts, { recursive: true });
   writeFileSync(path.join(work, 'ball.txt'), GOOD_SCENE);
@@ -65,6 +75,7 @@ before(async () => {
     ],
     viewport: { width: 1280, height: 800 },
   });
+  if (process.env.VOXTRACE_WEB_DIR) await servePageFrom(path.resolve(process.env.VOXTRACE_WEB_DIR));
 });
 
 after(async () => {
@@ -221,6 +232,36 @@ test('samples and depth set on the page are sent and give the CLI image with the
   }
 });
 
+test('a tile answered 503 is asked again after Retry-After, and a server that stays busy is reported', { timeout: 120000 }, async () => {
+  const { page, problems, renders } = await openPage();
+  try {
+    await upload(page, 'ball.txt');
+    let refusals = 1;
+    await page.route(/\/render\?/, (route) => {
+      if (refusals-- > 0) {
+        route.fulfill({ status: 503, headers: { 'Retry-After': '0' }, contentType: 'text/plain', body: 'the render queue is full' });
+      } else {
+        route.continue();
+      }
+    });
+    await renderAndWait(page);
+    assert.equal(renders.length, 5, 'four tiles and one asked again');
+    assert.equal(await page.textContent('#progress-text'), '4 of 4 tiles');
+
+    refusals = Infinity;
+    await page.click('#render');
+    await page.waitForFunction(() => document.getElementById('error').textContent !== '', null, { timeout: PATIENCE_MS });
+    assert.equal(await page.textContent('#error'), 'the render queue is full. The server is busy; try again shortly.');
+    const busy = renders.slice(5).map((q) => q.get('region'));
+    assert.equal(busy.filter((r) => r === '0,0,32,32').length, 4, `four attempts at the first tile: ${busy}`);
+    assert.ok(busy.every((r) => r === '0,0,32,32' || r === '32,0,64,32'), `tiles started after the failure: ${busy}`);
+    assert.ok(await page.isDisabled('#download-png'));
+    assert.deepEqual(problems, []);
+  } finally {
+    await page.close();
+  }
+});
+
 // The elapsed time on show, in milliseconds.
 function shownMs(text) {
   const m = /^(\d+(?:\.\d+)?) (ms|s)$/.exec(text) || [];
@@ -254,6 +295,8 @@ test('a slow render shows progress and elapsed time, and cancel frees the server
     const busy = await metrics(server.url);
     assert.ok(busy.get('voxtrace_renders_in_flight') >= 1, 'no render in flight on the server');
     await page.screenshot({ path: path.join(artifacts, 'desktop-progress.png'), fullPage: true });
+    await page.setViewportSize({ width: 390, height: 844 });
+    await page.screenshot({ path: path.join(artifacts, 'phone-progress.png'), fullPage: true });
 
     await page.click('#cancel');
     await page.waitForFunction(() => !document.getElementById('stale').hidden
@@ -345,6 +388,10 @@ for (const [name, viewport] of [['desktop', { width: 1280, height: 800 }], ['pho
       assert.ok(scrollWidth <= viewport.width, `page is ${scrollWidth}px wide at a ${viewport.width}px viewport`);
       const box = await page.locator('#result').boundingBox();
       assert.ok(box.width > 0 && box.x >= 0 && box.x + box.width <= viewport.width, `image at ${JSON.stringify(box)}`);
+      await upload(page, 'broken.txt');
+      await page.click('#render');
+      await page.waitForFunction(() => !document.getElementById('stale').hidden, null, { timeout: PATIENCE_MS });
+      await page.screenshot({ path: path.join(artifacts, `${name}-error.png`), fullPage: true });
       assert.deepEqual(problems, []);
     } finally {
       await page.close();
