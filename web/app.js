@@ -5,10 +5,10 @@ import { decodePng, encodePng } from './decode.js';
 import { Editor } from './editor.js';
 import { formatCount, formatDuration } from './format.js';
 import { Framebuffer } from './framebuffer.js';
-import { BINARY_SNIFF_BYTES, CLOCK_TICK_MS, MAX_DEPTH, MAX_SPP, TILES_IN_FLIGHT } from './limits.js';
-import { RenderRefused, fetchTile, suggestedName } from './request.js';
+import { BINARY_SNIFF_BYTES, CLOCK_TICK_MS, MAX_DEPTH, MAX_PAGE_PIXELS, MAX_SPP, TILES_IN_FLIGHT } from './limits.js';
+import { RenderRefused, ServerUnreachable, fetchTile, suggestedName } from './request.js';
 import { dialectDefaults, sceneDialect, sceneResolution } from './scene-info.js';
-import { eachLimited, planTiles } from './tiles.js';
+import { eachLimited, planTiles, tileCount } from './tiles.js';
 
 const $ = (id) => document.getElementById(id);
 const editor = new Editor({ textarea: $('scene'), gutter: $('gutter'), lineMark: $('line-mark') });
@@ -156,6 +156,12 @@ function query() {
   return { text: editor.text, spp: spp.value, depth: depth.value, rules };
 }
 
+// A message when the scene's image is more than the page holds, else null.
+function tooLarge(resolution) {
+  if (!resolution || resolution.width * resolution.height <= MAX_PAGE_PIXELS) return null;
+  return `The image is ${resolution.width} × ${resolution.height} pixels; this page shows at most ${MAX_PAGE_PIXELS.toLocaleString()} pixels. Render it with voxtrace render (--remote to use this server).`;
+}
+
 // ---- What the output panel shows ----
 
 function setDownloads(enabled) {
@@ -215,7 +221,9 @@ class TiledRender {
   constructor(request, resolution, signal) {
     this.request = request;
     this.signal = signal;
-    this.tiles = resolution ? planTiles(resolution.width, resolution.height) : [null];
+    this.tiles = resolution
+      ? planTiles(resolution.width, resolution.height, tileCount(resolution.width, resolution.height, request.text.length))
+      : [null];
     this.resolution = resolution;
     this.done = 0;
     this.rays = 0;
@@ -258,13 +266,15 @@ async function render() {
   if (running) return;
   const request = query();
   clearError();
-  if (request.message) {
-    showError(request.message);
+  const resolution = request.message ? null : sceneResolution(request.text);
+  const refusal = request.message || tooLarge(resolution);
+  if (refusal) {
+    showError(refusal);
     return;
   }
   const controller = new AbortController();
   running = { controller, cancelled: false };
-  const job = new TiledRender(request, sceneResolution(request.text), controller.signal);
+  const job = new TiledRender(request, resolution, controller.signal);
   const started = performance.now();
   const tick = () => showProgress(job.done, job.tiles.length, performance.now() - started);
   setRunning(true);
@@ -305,17 +315,12 @@ function failed(job, err, cancelled) {
   if (partial) shown = { frame: job.frame, name: job.name, complete: false };
   const what = partial ? `Incomplete: ${job.done} of ${job.tiles.length} tiles` : 'Out of date: the previous image';
   $('progress-text').textContent = `${cancelled ? 'Cancelled' : 'Stopped'} at ${job.done} of ${job.tiles.length} tiles`;
-  if (cancelled) {
-    markStale(`${what}. Render cancelled.`);
-    return;
+  if (!cancelled) {
+    const known = err instanceof RenderRefused || err instanceof ServerUnreachable;
+    showError(known ? err.message : `The page could not show the server's image: ${err.message}`);
+    if (err instanceof RenderRefused && err.line > 0) editor.markLine(err.line);
   }
-  if (err instanceof RenderRefused) {
-    showError(err.message);
-    if (err.line > 0) editor.markLine(err.line);
-  } else {
-    showError(err.message);
-  }
-  if (shown) markStale(`${what}. The last render failed.`);
+  if (shown) markStale(`${what}. ${cancelled ? 'Render cancelled.' : 'The last render failed.'}`);
 }
 
 function cancel() {

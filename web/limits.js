@@ -11,11 +11,18 @@ export const DEFAULT_BROWSER_DEPTH = 16;
 export const BINARY_SNIFF_BYTES = 8 * 1024;
 
 // The page's own tunables.
-// About this many tiles per image: enough for a progress bar that moves, few
-// enough that parsing the scene once per tile stays a small part of the work.
+// At most this many tiles per image: enough for a progress bar that moves.
 export const TARGET_TILES = 24;
-// Tiles are squares with a side that is a multiple of this (the renderer's block).
-export const TILE_STEP = 32;
+// Tiles no smaller than this many pixels: each costs a request and a parse.
+export const MIN_TILE_PIXELS = 64 * 64;
+// The scene text is sent, and parsed, once per tile: the tiles of one render
+// send at most this much of it in all (a 9.6 MB scene of 10^5 spheres goes
+// in 3 tiles, a scene of a few kilobytes in TARGET_TILES).
+export const TILE_UPLOAD_BYTES = 32 * 1024 * 1024;
+// The largest image the page holds (as RGB and as a canvas, about 7 bytes a
+// pixel): the service's default --max-pixels. Larger frames are for
+// `voxtrace render --remote`.
+export const MAX_PAGE_PIXELS = 4096 * 4096;
 // Tile requests at once: the server has few render slots (4 by default) and
 // each render is already parallel, so more would only queue and hold memory.
 export const TILES_IN_FLIGHT = 2;

@@ -1,15 +1,26 @@
 // Cutting an image into tiles and fetching them a few at a time.
-import { TARGET_TILES, TILE_STEP } from './limits.js';
+import { MIN_TILE_PIXELS, TARGET_TILES, TILE_UPLOAD_BYTES } from './limits.js';
 
-// Near-square tiles covering a width × height image once, in reading order,
-// each { x0, y0, x1, y1 } with the ends exclusive (the server's region).
-export function planTiles(width, height) {
-  const ideal = Math.sqrt((width * height) / TARGET_TILES);
-  const side = Math.max(TILE_STEP, Math.ceil(ideal / TILE_STEP) * TILE_STEP);
+// How many tiles a width × height image of a scene of `sceneBytes` bytes is
+// cut into: TARGET_TILES, fewer when the tiles would be small or the scene
+// text sent once per tile would pass TILE_UPLOAD_BYTES; at least one.
+export function tileCount(width, height, sceneBytes) {
+  const bySize = Math.floor((width * height) / MIN_TILE_PIXELS);
+  const byUpload = Math.floor(TILE_UPLOAD_BYTES / Math.max(1, sceneBytes));
+  return Math.max(1, Math.min(TARGET_TILES, bySize, byUpload));
+}
+
+// About `count` near-square tiles covering a width × height image once, in
+// reading order, each { x0, y0, x1, y1 } with the ends exclusive (the
+// server's region).
+export function planTiles(width, height, count) {
+  const cols = Math.min(width, count, Math.max(1, Math.round(Math.sqrt((count * width) / height))));
+  const rows = Math.min(height, Math.max(1, Math.round(count / cols)));
+  const cut = (i, n, size) => Math.round((i * size) / n);
   const tiles = [];
-  for (let y0 = 0; y0 < height; y0 += side) {
-    for (let x0 = 0; x0 < width; x0 += side) {
-      tiles.push({ x0, y0, x1: Math.min(width, x0 + side), y1: Math.min(height, y0 + side) });
+  for (let r = 0; r < rows; r++) {
+    for (let c = 0; c < cols; c++) {
+      tiles.push({ x0: cut(c, cols, width), y0: cut(r, rows, height), x1: cut(c + 1, cols, width), y1: cut(r + 1, rows, height) });
     }
   }
   return tiles;

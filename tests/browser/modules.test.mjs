@@ -4,9 +4,9 @@ import assert from 'node:assert/strict';
 import { binaryKind } from '../../web/binary.js';
 import { formatCount, formatDuration } from '../../web/format.js';
 import { Framebuffer } from '../../web/framebuffer.js';
-import { BINARY_SNIFF_BYTES, TARGET_TILES } from '../../web/limits.js';
+import { BINARY_SNIFF_BYTES, MIN_TILE_PIXELS, TARGET_TILES, TILE_UPLOAD_BYTES } from '../../web/limits.js';
 import { dialectDefaults, sceneDialect, sceneResolution } from '../../web/scene-info.js';
-import { eachLimited, planTiles, regionParam } from '../../web/tiles.js';
+import { eachLimited, planTiles, regionParam, tileCount } from '../../web/tiles.js';
 
 test('durations read in ms or s, never with a thousands separator', () => {
   assert.equal(formatDuration(0.546), '0.55 ms');
@@ -56,19 +56,31 @@ test('the resolution is read only from one well-formed RES line', () => {
   assert.equal(sceneResolution('# RES 4 4\n'), null);
 });
 
-test('tiles cover the image once, near-square, about TARGET_TILES of them', () => {
-  for (const [w, h] of [[1, 1], [64, 48], [256, 256], [600, 600], [1000, 7], [4096, 4096]]) {
-    const tiles = planTiles(w, h);
-    const seen = new Uint8Array(w * h);
-    for (const t of tiles) {
-      assert.ok(t.x0 < t.x1 && t.y0 < t.y1 && t.x1 <= w && t.y1 <= h, `${w}x${h}: ${regionParam(t)}`);
-      for (let y = t.y0; y < t.y1; y++) for (let x = t.x0; x < t.x1; x++) seen[y * w + x]++;
+test('tiles cover the image once, near-square, as many as asked for or fewer', () => {
+  for (const [w, h] of [[1, 1], [64, 48], [256, 256], [600, 600], [1000, 7], [7, 1000], [4096, 4096]]) {
+    for (const count of [1, 3, TARGET_TILES]) {
+      const tiles = planTiles(w, h, count);
+      const seen = new Uint8Array(w * h);
+      for (const t of tiles) {
+        assert.ok(t.x0 < t.x1 && t.y0 < t.y1 && t.x1 <= w && t.y1 <= h, `${w}x${h}: ${regionParam(t)}`);
+        for (let y = t.y0; y < t.y1; y++) for (let x = t.x0; x < t.x1; x++) seen[y * w + x]++;
+      }
+      assert.ok(seen.every((n) => n === 1), `${w}x${h}: a pixel is covered twice or not at all`);
+      assert.ok(tiles.length <= count * 1.5, `${w}x${h}: ${tiles.length} tiles for ${count}`);
     }
-    assert.ok(seen.every((n) => n === 1), `${w}x${h}: a pixel is covered twice or not at all`);
-    assert.ok(tiles.length <= TARGET_TILES * 2, `${w}x${h}: ${tiles.length} tiles`);
   }
-  assert.equal(planTiles(600, 600).length, 25);
+  assert.deepEqual(planTiles(256, 256, 16).map(regionParam).slice(0, 5), ['0,0,64,64', '64,0,128,64', '128,0,192,64', '192,0,256,64', '0,64,64,128']);
+  assert.equal(planTiles(600, 600, TARGET_TILES).length, 25);
+  assert.equal(planTiles(1000, 7, 4).length, 4);
   assert.equal(regionParam({ x0: 1, y0: 2, x1: 3, y1: 4 }), '1,2,3,4');
+});
+
+test('fewer tiles for small images and for large scene texts', () => {
+  assert.equal(tileCount(600, 600, 400), TARGET_TILES);
+  assert.equal(tileCount(256, 256, 400), (256 * 256) / MIN_TILE_PIXELS);
+  assert.equal(tileCount(64, 48, 400), 1);
+  assert.equal(tileCount(512, 512, 9569060), Math.floor(TILE_UPLOAD_BYTES / 9569060));
+  assert.equal(tileCount(512, 512, TILE_UPLOAD_BYTES * 2), 1);
 });
 
 test('eachLimited keeps to its limit, and stops starting work after a failure', async () => {

@@ -38,7 +38,7 @@ const GOOD_SCENE = [
 const BAD_SCENE = GOOD_SCENE.replace('LEFT -1', 'LEFT abc');
 const REFRACT = path.join(fixtures, 'tinygraphics/scenes/test_refract.txt');
 const SAMPLE = path.join(fixtures, 'classic/scenes/testSample.txt');
-// test_refract at 512x512: with 1024 samples a pixel, each of its 16 tiles
+// test_refract at 512x512: with 1024 samples a pixel, each of its 25 tiles
 // takes seconds, so the render is still going when the test cancels it.
 const SLOW_SCENE = readFileSync(REFRACT, 'utf8').replace(/^RES .*$/m, 'RES 512 512');
 const SLOW_SPP = '1024';
@@ -138,7 +138,7 @@ async function canvasRgb(page) {
 
 const TIME = /^\d+(\.\d+)? (ms|s)$|^\d+ min \d\d s$/;
 
-test('an uploaded scene renders into the page, tile by tile', { timeout: 120000 }, async () => {
+test('an uploaded scene renders into the page', { timeout: 120000 }, async () => {
   const { page, problems, renders } = await openPage();
   try {
     assert.equal(await page.title(), 'voxtrace');
@@ -162,10 +162,10 @@ test('an uploaded scene renders into the page, tile by tile', { timeout: 120000 
     assert.equal(shown.Size, '64 × 48');
     assert.match(shown.Elapsed, TIME);
     assert.match(shown['Render time'], TIME);
-    assert.equal(renders.length, 4, 'one request per tile');
-    assert.deepEqual(renders.map((q) => q.get('region')).sort(), ['0,0,32,32', '0,32,32,48', '32,0,64,32', '32,32,64,48']);
-    assert.equal(await page.getAttribute('#progress', 'value'), '4');
-    assert.equal(await page.textContent('#progress-text'), '4 of 4 tiles');
+    // So small an image is one tile.
+    assert.deepEqual(renders.map((q) => q.get('region')), ['0,0,64,48']);
+    assert.equal(await page.getAttribute('#progress', 'value'), '1');
+    assert.equal(await page.textContent('#progress-text'), '1 of 1 tiles');
     assert.ok(await page.isEnabled('#download-png'));
     assert.ok(await page.isEnabled('#render'), 'render button is usable again');
     assert.ok(await page.isHidden('#cancel'), 'nothing to cancel');
@@ -183,7 +183,10 @@ test('a browser-dialect scene from the page is the CLI image, byte for byte, wit
     assert.equal(await page.textContent('#depth-hint'), 'default: 16 (browser dialect)');
     assert.equal(await page.getAttribute('#depth', 'placeholder'), '16');
     await renderAndWait(page);
-    assert.ok(renders.length > 1, `${renders.length} requests`);
+    const regions = renders.map((q) => q.get('region')).sort();
+    const grid = [0, 64, 128, 192].flatMap((y) => [0, 64, 128, 192].map((x) => `${x},${y},${x + 64},${y + 64}`)).sort();
+    assert.deepEqual(regions, grid, 'one request per tile of 64 × 64');
+    assert.equal(await page.textContent('#progress-text'), '16 of 16 tiles');
     for (const params of renders) {
       assert.ok(!params.has('depth') && !params.has('spp'), `the page sent ${params} with the fields left empty`);
     }
@@ -218,6 +221,14 @@ test('samples and depth set on the page are sent and give the CLI image with the
     assert.match(await page.textContent('#error'), /Samples per pixel must be a whole number from 1 to 1024/);
     assert.equal(renders.length, 0, 'a bad field was sent');
 
+    await page.fill('#spp', '');
+    const text = await page.inputValue('#scene');
+    await page.fill('#scene', text.replace(/RES .*/, 'RES 5000 4000'));
+    await page.click('#render');
+    assert.match(await page.textContent('#error'), /The image is 5000 × 4000 pixels; this page shows at most \S+ pixels/);
+    assert.equal(renders.length, 0, 'an image too large for the page was asked for');
+    await page.fill('#scene', text);
+
     await page.fill('#spp', '2');
     await page.fill('#depth', '5');
     await renderAndWait(page);
@@ -235,7 +246,7 @@ test('samples and depth set on the page are sent and give the CLI image with the
 test('a tile answered 503 is asked again after Retry-After, and a server that stays busy is reported', { timeout: 120000 }, async () => {
   const { page, problems, renders } = await openPage();
   try {
-    await upload(page, 'ball.txt');
+    await upload(page, 'test_refract.txt');
     let refusals = 1;
     await page.route(/\/render\?/, (route) => {
       if (refusals-- > 0) {
@@ -245,16 +256,16 @@ test('a tile answered 503 is asked again after Retry-After, and a server that st
       }
     });
     await renderAndWait(page);
-    assert.equal(renders.length, 5, 'four tiles and one asked again');
-    assert.equal(await page.textContent('#progress-text'), '4 of 4 tiles');
+    assert.equal(renders.length, 17, 'sixteen tiles and one asked again');
+    assert.equal(await page.textContent('#progress-text'), '16 of 16 tiles');
 
     refusals = Infinity;
     await page.click('#render');
     await page.waitForFunction(() => document.getElementById('error').textContent !== '', null, { timeout: PATIENCE_MS });
     assert.equal(await page.textContent('#error'), 'the render queue is full. The server is busy; try again shortly.');
-    const busy = renders.slice(5).map((q) => q.get('region'));
-    assert.equal(busy.filter((r) => r === '0,0,32,32').length, 4, `four attempts at the first tile: ${busy}`);
-    assert.ok(busy.every((r) => r === '0,0,32,32' || r === '32,0,64,32'), `tiles started after the failure: ${busy}`);
+    const busy = renders.slice(17).map((q) => q.get('region'));
+    assert.equal(busy.filter((r) => r === '0,0,64,64').length, 4, `four attempts at the first tile: ${busy}`);
+    assert.ok(busy.every((r) => r === '0,0,64,64' || r === '64,0,128,64'), `tiles started after the failure: ${busy}`);
     assert.ok(await page.isDisabled('#download-png'));
     assert.deepEqual(problems, []);
   } finally {
@@ -289,7 +300,7 @@ test('a slow render shows progress and elapsed time, and cancel frees the server
       max: Number(await page.getAttribute('#progress', 'max')),
       elapsed: shownMs(await page.textContent('#elapsed')),
     };
-    assert.equal(during.max, 16);
+    assert.equal(during.max, 25);
     assert.ok(during.progress >= 1 && during.progress < during.max, `progress ${during.progress} of ${during.max}`);
     assert.ok(during.elapsed > before.elapsed, `elapsed went from ${before.elapsed} to ${during.elapsed} ms`);
     const busy = await metrics(server.url);
@@ -303,7 +314,7 @@ test('a slow render shows progress and elapsed time, and cancel frees the server
       && document.getElementById('stale').textContent.includes('cancelled'), null, { timeout: PATIENCE_MS });
     assert.ok(await page.isEnabled('#render'));
     assert.ok(await page.isHidden('#cancel'));
-    assert.match(await page.textContent('#progress-text'), /^Cancelled at \d+ of 16 tiles$/);
+    assert.match(await page.textContent('#progress-text'), /^Cancelled at \d+ of 25 tiles$/);
     await page.screenshot({ path: path.join(artifacts, 'desktop-cancelled.png'), fullPage: true });
     assert.ok(await page.isDisabled('#download-png'), 'a cancelled image can be downloaded');
     const settled = await eventually('the server dropping the cancelled tiles', async () => {
@@ -312,7 +323,7 @@ test('a slow render shows progress and elapsed time, and cancel frees the server
     });
     // The tiles not yet sent never were, and those in flight were dropped.
     const slowRequests = renders.filter((q) => q.get('spp') === SLOW_SPP).length;
-    assert.ok(slowRequests < 16, `all ${slowRequests} tile requests were sent`);
+    assert.ok(slowRequests < 25, `all ${slowRequests} tile requests were sent`);
     const finished = settled.get('voxtrace_renders_total') - finishedBefore;
     assert.ok(finished < slowRequests, `${finished} of the ${slowRequests} tiles sent were rendered to the end`);
     assert.deepEqual(problems, []);
