@@ -395,6 +395,9 @@ for (const [name, viewport] of [['desktop', { width: 1280, height: 800 }], ['pho
       await upload(page, 'test_refract.txt');
       await renderAndWait(page);
       await page.screenshot({ path: path.join(artifacts, `${name}-rendered.png`), fullPage: true });
+      await page.emulateMedia({ colorScheme: 'dark' });
+      await page.screenshot({ path: path.join(artifacts, `${name}-rendered-dark.png`), fullPage: true });
+      await page.emulateMedia({ colorScheme: 'light' });
       const scrollWidth = await page.evaluate(() => document.scrollingElement.scrollWidth);
       assert.ok(scrollWidth <= viewport.width, `page is ${scrollWidth}px wide at a ${viewport.width}px viewport`);
       const box = await page.locator('#result').boundingBox();
