@@ -4,7 +4,6 @@ use super::admission::BodyCharge;
 use super::assets;
 use super::error::{ApiError, ApiErrorKind};
 use super::http::{Connection, RequestHead, Response};
-use super::memory_budget::resident_bytes;
 use super::metrics::Gauges;
 use super::render_route;
 use super::State;
@@ -86,17 +85,12 @@ fn get_resource(state: &State, path: &str) -> Option<Response> {
             )
         }
         "/healthz" => text("ok\n".into()),
-        "/metrics" => Response::new(
-            200,
-            "text/plain; version=0.0.4; charset=utf-8",
-            state.metrics.render_text(Gauges {
-                admission: state.admission.counts(),
-                body_bytes: state.bodies.used(),
-                memory_bytes: state.memory.used(),
-                memory_budget: state.memory.limit(),
-                resident_bytes: resident_bytes(),
-            }),
-        ),
+        "/metrics" => state.metrics.exposition(Gauges {
+            admission: state.admission.counts(),
+            body_bytes: state.bodies.used(),
+            memory_bytes: state.memory.used(),
+            memory_budget: state.memory.limit(),
+        }),
         "/scenes" => Response::new(200, "application/json", assets::scene_list_json()),
         _ => {
             if let Some(name) = path.strip_prefix("/scenes/") {
