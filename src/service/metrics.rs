@@ -134,6 +134,10 @@ pub struct Metrics {
     started: Instant,
 }
 
+/// The `kind` label of `voxtrace_rays_total`, in the order of
+/// [`RayCounts`]' fields.
+const RAY_KINDS: [&str; 4] = ["eye", "shadow", "reflection", "refraction"];
+
 fn request_histogram() -> Histogram {
     Histogram::new(limits::REQUEST_SECONDS_BUCKETS)
 }
@@ -166,7 +170,23 @@ impl Metrics {
             started: Instant::now(),
         };
         metrics.register();
+        metrics.zero_known_series();
         metrics
+    }
+
+    /// Every series whose labels are known in advance, at 0, so that a
+    /// query or alert over them finds them before the first event (as
+    /// Prometheus' instrumentation practice asks).
+    fn zero_known_series(&self) {
+        for kind in RAY_KINDS {
+            self.rays.get_or_create(&KindLabel { kind }).inc_by(0);
+        }
+        for reason in Refusal::ALL {
+            let reason = reason.label();
+            self.refusals
+                .get_or_create(&ReasonLabel { reason })
+                .inc_by(0);
+        }
     }
 
     /// Names every family; the registry keeps handles to the same atomics.
@@ -317,13 +337,8 @@ impl Metrics {
     pub fn render(&self, time: Duration, rays: RayCounts) {
         self.renders.inc();
         self.render_seconds.observe(time.as_secs_f64());
-        let kinds = [
-            ("eye", rays.eye),
-            ("shadow", rays.shadow),
-            ("reflection", rays.reflection),
-            ("refraction", rays.refraction),
-        ];
-        for (kind, n) in kinds {
+        let counts = [rays.eye, rays.shadow, rays.reflection, rays.refraction];
+        for (kind, n) in RAY_KINDS.into_iter().zip(counts) {
             self.rays.get_or_create(&KindLabel { kind }).inc_by(n);
         }
     }
@@ -507,7 +522,7 @@ mod tests {
         let text = text_of(&m, Gauges::default());
         assert!(text.contains("voxtrace_render_refusals_total{reason=\"limit\"} 1\n"));
         assert!(text.contains("voxtrace_render_refusals_total{reason=\"time_budget\"} 1\n"));
-        assert!(!text.contains("{reason=\"busy\"}"), "{text}");
+        assert!(text.contains("voxtrace_render_refusals_total{reason=\"busy\"} 0\n"));
         assert!(text.contains("voxtrace_errors_total{kind=\"body_too_large\"} 1\n"));
     }
 

@@ -20,6 +20,14 @@ pub enum Refusal {
 }
 
 impl Refusal {
+    pub const ALL: [Refusal; 5] = [
+        Refusal::Limit,
+        Refusal::TimeBudget,
+        Refusal::Busy,
+        Refusal::Memory,
+        Refusal::Draining,
+    ];
+
     /// The refusal an error response reports, by its kind's machine name
     /// ([`super::ApiErrorKind::name`]); `None` for an error that is not a
     /// refusal (a malformed scene or query, an encoding failure).
