@@ -117,9 +117,9 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
     let addr = server.local_addr().map_err(CliError::Serving)?;
     say(&format!("listening on http://{addr}"))?;
     let (drained, on_drained) = mpsc::channel();
-    let tally = server.drainer().map_err(CliError::Serving)?;
+    let drainer = server.drainer().map_err(CliError::Serving)?;
     if let Some(signals) = signals {
-        let drainer = tally.clone();
+        let drainer = drainer.clone();
         let timeout = Duration::from_millis(args.drain_timeout_ms);
         std::thread::Builder::new()
             .name("voxtrace-signals".into())
@@ -134,7 +134,7 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
             drained.elapsed.as_millis()
         ))?;
     }
-    say(&tally.served().to_string())
+    say(&drainer.served().to_string())
 }
 
 /// Waits for a stop signal, then drains the service. A drain that runs out
