@@ -188,9 +188,9 @@ def time_budget(binary, budget):
                 print(f"  {name}: status {status}, answered after {took:.3f} s, overshoot {shown}")
             status, _, took = exchange(server.addr, request("/render", SAMPLE), timeout=10)
             print(f"  next client: status {status} after {took:.3f} s")
-            served = metric(server.addr, "voxtrace_render_overshoot_max_microseconds")
+            served = metric(server.addr, "voxtrace_render_overshoot_max_seconds")
             if served is not None:
-                print(f"  server's worst overshoot: {served / 1e3:.1f} ms")
+                print(f"  server's worst overshoot: {served * 1e3:.1f} ms")
         finally:
             server.stop()
     print(f"  worst overshoot in the 504s: {worst * 1e3:.1f} ms")
@@ -218,8 +218,8 @@ def unread(addr, n, path, body):
     end = time.monotonic() + PATIENCE
     statuses = []
     while time.monotonic() < end:
-        ok = metric(addr, 'voxtrace_requests_total{route="/render",status="200"}') or 0
-        busy = metric(addr, 'voxtrace_requests_total{route="/render",status="503"}') or 0
+        ok = metric(addr, 'voxtrace_http_requests_total{handler="/render",method="POST",code="200"}') or 0
+        busy = metric(addr, 'voxtrace_http_requests_total{handler="/render",method="POST",code="503"}') or 0
         statuses = [200] * int(ok) + [503] * int(busy)
         if ok + busy >= n:
             break

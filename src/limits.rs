@@ -146,6 +146,34 @@ pub const DEFAULT_WRITE_TIMEOUT_MS: u64 = 30_000;
 /// What `Retry-After` tells a client turned away by a full queue, in seconds.
 pub const RETRY_AFTER_S: u32 = 1;
 
+// ---- What the service tells of itself: `/metrics` and the access log. ----
+
+/// Upper bounds (seconds) of the request-duration histogram's buckets: from
+/// a `/healthz` (well under a millisecond) to a render that waited its whole
+/// budget in the queue and then ran its whole budget (twice
+/// [`DEFAULT_RENDER_TIMEOUT_MS`]).
+pub const REQUEST_SECONDS_BUCKETS: [f64; 16] = [
+    0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
+    60.0,
+];
+/// Upper bounds (seconds) of the render-time histogram's buckets (index
+/// build and tracing only), up to the render budget.
+pub const RENDER_SECONDS_BUCKETS: [f64; 12] = [
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
+];
+/// Access-log lines waiting for the disk (or the terminal). Requests never
+/// wait for the log: past this, lines are dropped and counted
+/// (`voxtrace_access_log_dropped_lines_total`).
+pub const ACCESS_LOG_QUEUE_LINES: usize = 1_024;
+/// Longest request target, `Referer` or `User-Agent` an access-log line
+/// holds, in bytes; longer ones are cut there and marked with `...`, so a
+/// line (and the queue) stays small whatever a client sends.
+pub const ACCESS_LOG_FIELD_BYTES: usize = 1_024;
+/// How long a stopping service waits for the access log to write what it
+/// has queued, in milliseconds, so a stuck disk or pipe cannot hold up its
+/// exit.
+pub const ACCESS_LOG_CLOSE_TIMEOUT_MS: u64 = 2_000;
+
 // ---- Tiled remote renders (`voxtrace render --remote`) and draining. ----
 
 /// Tiles a remote render is split into unless told otherwise: enough for a

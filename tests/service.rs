@@ -197,11 +197,17 @@ fn routes_methods_and_head() {
 
     let metrics = client.request("GET", "/metrics", &[], b"").text();
     assert!(
-        metrics.contains("voxtrace_requests_total{route=\"/healthz\",status=\"200\"} 1\n"),
+        metrics.contains(
+            "voxtrace_http_requests_total{handler=\"/healthz\",method=\"GET\",code=\"200\"} 1\n"
+        ),
         "{metrics}"
     );
-    assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"405\"} 1\n"));
-    assert!(metrics.contains("voxtrace_requests_total{route=\"other\",status=\"404\"} 1\n"));
+    assert!(metrics.contains(
+        "voxtrace_http_requests_total{handler=\"/render\",method=\"GET\",code=\"405\"} 1\n"
+    ));
+    assert!(metrics.contains(
+        "voxtrace_http_requests_total{handler=\"other\",method=\"GET\",code=\"404\"} 1\n"
+    ));
     for name in [
         "voxtrace_renders_total",
         "voxtrace_rays_total",
@@ -240,7 +246,9 @@ fn one_connection_serves_many_requests_until_told_to_close() {
     let metrics = Client::connect(server.addr())
         .request("GET", "/metrics", &[], b"")
         .text();
-    assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 3\n"));
+    assert!(metrics.contains(
+        "voxtrace_http_requests_total{handler=\"/render\",method=\"POST\",code=\"200\"} 3\n"
+    ));
 }
 
 #[test]
@@ -480,12 +488,12 @@ fn a_client_that_leaves_while_queued_gives_its_place_back_and_is_never_rendered(
     // never started.
     assert_eq!(metric(addr, "voxtrace_renders_total"), Some(1));
     let rays: u64 = reply.header("x-rays").unwrap().parse().unwrap();
-    assert_eq!(metric(addr, "voxtrace_rays_total"), Some(rays));
+    assert_eq!(support::metric_sum(addr, "voxtrace_rays_total"), rays);
     assert_eq!(metric(addr, "voxtrace_renders_abandoned_total"), Some(2));
     assert_eq!(
         metric(
             addr,
-            "voxtrace_requests_total{route=\"/render\",status=\"499\"}"
+            "voxtrace_http_requests_total{handler=\"/render\",method=\"POST\",code=\"499\"}"
         ),
         Some(2)
     );
@@ -536,7 +544,9 @@ fn sixteen_concurrent_clients_are_all_served_correctly() {
     let metrics = Client::connect(addr)
         .request("GET", "/metrics", &[], b"")
         .text();
-    assert!(metrics.contains("voxtrace_requests_total{route=\"/render\",status=\"200\"} 32\n"));
+    assert!(metrics.contains(
+        "voxtrace_http_requests_total{handler=\"/render\",method=\"POST\",code=\"200\"} 32\n"
+    ));
     assert!(metrics.contains("voxtrace_renders_total 32\n"));
 }
 

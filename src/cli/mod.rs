@@ -115,7 +115,9 @@ impl CliError {
             CliError::LoadFailed(failure) => failure.is_input_error(),
             CliError::Serve(e) => match e {
                 BindError::Config(_) | BindError::Resolve { .. } | BindError::NoAddress(_) => true,
-                BindError::Listen { .. } | BindError::Pool(_) => false,
+                BindError::Listen { .. } | BindError::Pool(_) | BindError::AccessLog { .. } => {
+                    false
+                }
             },
         };
         ExitCode::from(if usage { 2 } else { 1 })

@@ -3,7 +3,7 @@
 use super::signals::StopSignals;
 use super::CliError;
 use crate::limits;
-use crate::service::{Drained, Drainer, Server, ServiceConfig};
+use crate::service::{AccessLogTarget, Drained, Drainer, Server, ServiceConfig};
 use crate::threads::Threads;
 use std::io::Write;
 use std::sync::mpsc;
@@ -75,6 +75,12 @@ pub struct ServeArgs {
     /// finish before exiting regardless (exit code 1), in milliseconds.
     #[arg(long, default_value_t = limits::DEFAULT_DRAIN_TIMEOUT_MS)]
     drain_timeout_ms: u64,
+    /// Write a line per request to PATH (appended to), or to standard output
+    /// with -: nginx's combined format with the request time in seconds
+    /// appended. Lines the disk cannot take in time are dropped and counted
+    /// in /metrics; serving never waits for the log.
+    #[arg(long, value_name = "PATH|-")]
+    access_log: Option<AccessLogTarget>,
 }
 
 impl ServeArgs {
@@ -99,6 +105,7 @@ impl ServeArgs {
             write_timeout: ms(self.write_timeout_ms),
             threads: self.threads.unwrap_or_default(),
             name: self.worker_name.clone(),
+            access_log: self.access_log.clone(),
         }
     }
 }
@@ -110,8 +117,9 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
     let addr = server.local_addr().map_err(CliError::Serving)?;
     say(&format!("listening on http://{addr}"))?;
     let (drained, on_drained) = mpsc::channel();
+    let drainer = server.drainer().map_err(CliError::Serving)?;
     if let Some(signals) = signals {
-        let drainer = server.drainer().map_err(CliError::Serving)?;
+        let drainer = drainer.clone();
         let timeout = Duration::from_millis(args.drain_timeout_ms);
         std::thread::Builder::new()
             .name("voxtrace-signals".into())
@@ -126,7 +134,7 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
             drained.elapsed.as_millis()
         ))?;
     }
-    Ok(())
+    say(&drainer.served().to_string())
 }
 
 /// Waits for a stop signal, then drains the service. A drain that runs out
@@ -147,6 +155,7 @@ fn drain_on_signal(
             outcome.left,
             timeout.as_millis()
         );
+        let _ = say(&drainer.served().to_string());
         std::process::exit(1);
     }
     // Sent before the service stops, so that `run` finds it once it returns.

@@ -1,5 +1,6 @@
 //! What `voxtrace serve` can be told, and why a service may not start.
 
+use super::access_log::AccessLogTarget;
 use super::http;
 use super::registry::Caps;
 use crate::limits;
@@ -35,6 +36,9 @@ pub struct ServiceConfig {
     /// What the service calls itself in the `X-Worker` header of every
     /// image; `None`: the address it listens on.
     pub name: Option<String>,
+    /// Where each request gets a line (nginx's combined format); `None`:
+    /// no access log.
+    pub access_log: Option<AccessLogTarget>,
 }
 
 impl Default for ServiceConfig {
@@ -59,6 +63,7 @@ impl Default for ServiceConfig {
             write_timeout: ms(limits::DEFAULT_WRITE_TIMEOUT_MS),
             threads: Threads::AllCores,
             name: None,
+            access_log: None,
         }
     }
 }
@@ -187,6 +192,11 @@ pub enum BindError {
     },
     /// The render pool would not start.
     Pool(PoolError),
+    /// The access log could not be opened.
+    AccessLog {
+        target: AccessLogTarget,
+        source: io::Error,
+    },
 }
 
 impl From<ConfigError> for BindError {
@@ -203,6 +213,9 @@ impl fmt::Display for BindError {
             BindError::NoAddress(addr) => write!(f, "{addr} names no address"),
             BindError::Listen { addr, source } => write!(f, "cannot listen on {addr}: {source}"),
             BindError::Pool(e) => write!(f, "{e}"),
+            BindError::AccessLog { target, source } => {
+                write!(f, "cannot open the access log {target}: {source}")
+            }
         }
     }
 }
@@ -211,7 +224,9 @@ impl std::error::Error for BindError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             BindError::Config(e) => Some(e),
-            BindError::Resolve { source, .. } | BindError::Listen { source, .. } => Some(source),
+            BindError::Resolve { source, .. }
+            | BindError::Listen { source, .. }
+            | BindError::AccessLog { source, .. } => Some(source),
             BindError::Pool(e) => Some(e),
             BindError::NoAddress(_) => None,
         }

@@ -3,6 +3,7 @@
 
 use super::error::{ApiError, ApiErrorKind};
 use super::http::{self, BodyFraming, Connection, NoRequest, RequestHead, Response};
+use super::observe::Exchange;
 use super::registry::Registration;
 use super::routes;
 use super::State;
@@ -35,7 +36,8 @@ pub fn serve(
             Ok(head) => head,
             Err(error) => return refuse(state, &conn, error),
         };
-        if !answer(state, registration, &mut conn, &head) {
+        let started = Instant::now();
+        if !answer(state, registration, &mut conn, &head, started) {
             return;
         }
         conn.request_done();
@@ -64,13 +66,23 @@ pub fn serve_reserve(
         Err(NoRequest::Io) => return,
         Err(_) => {
             let response = ApiError::from(refusal).into_response(false);
-            state.metrics.response("connection", &response);
-            let _ = write_response(state, &conn, &response, false, false);
+            let exchange = Exchange {
+                stream: &conn.stream,
+                head: None,
+                handler: "connection",
+                started: Instant::now(),
+            };
+            let _ = write_response(state, &conn, &exchange, &response, false, false);
             return;
         }
     };
+    let exchange = Exchange {
+        stream: &conn.stream,
+        head: Some(&head),
+        handler: routes::label(&head.path),
+        started: Instant::now(),
+    };
     registration.request_received();
-    let route = routes::label(&head.path);
     let bodiless = matches!(
         head.body_framing(),
         BodyFraming::Absent | BodyFraming::Length(0)
@@ -82,8 +94,8 @@ pub fn serve_reserve(
     };
     let response =
         answered.unwrap_or_else(|| ApiError::from(refusal).into_response(head.accepts_json()));
-    state.metrics.response(route, &response);
-    let _ = write_response(state, &conn, &response, head.method == "HEAD", false);
+    let head_only = head.method == "HEAD";
+    let _ = write_response(state, &conn, &exchange, &response, head_only, false);
 }
 
 /// No request could be read: say why, if there is anyone to tell, in plain
@@ -97,19 +109,27 @@ fn refuse(state: &State, conn: &Connection, error: NoRequest) {
         NoRequest::OverBudget => ApiErrorKind::BodyMemory,
     };
     let response = ApiError::from(kind).into_response(false);
-    state.metrics.response("other", &response);
-    let _ = write_response(state, conn, &response, false, false);
+    let exchange = Exchange {
+        stream: &conn.stream,
+        head: None,
+        handler: "other",
+        started: Instant::now(),
+    };
+    let _ = write_response(state, conn, &exchange, &response, false, false);
 }
 
 /// Writes a response within the write timeout, which bounds the whole
 /// response; a client too slow to take it in time is counted and cut off.
+/// The exchange is counted as the response is sent, and noted once written.
 fn write_response(
     state: &State,
     conn: &Connection,
+    exchange: &Exchange,
     response: &Response,
     head_only: bool,
     keep: bool,
 ) -> io::Result<()> {
+    exchange.sending(state, response);
     let deadline = Instant::now() + state.config.write_timeout;
     let written = response.write_to(&conn.stream, head_only, keep, deadline);
     if written
@@ -118,6 +138,11 @@ fn write_response(
     {
         state.metrics.write_timed_out();
     }
+    let body_bytes = match written {
+        Ok(()) if !head_only => response.body.len() as u64,
+        _ => 0,
+    };
+    exchange.written(state, response.status, body_bytes);
     written
 }
 
@@ -127,18 +152,25 @@ fn answer(
     registration: &Registration,
     conn: &mut Connection,
     head: &RequestHead,
+    started: Instant,
 ) -> bool {
-    let route = routes::label(&head.path);
-    match handle(state, registration, conn, head) {
+    let step = handle(state, registration, conn, head);
+    let exchange = Exchange {
+        stream: &conn.stream,
+        head: Some(head),
+        handler: routes::label(&head.path),
+        started,
+    };
+    match step {
         Step::Gone => {
             // 499: nginx's code for "client closed the request".
-            state.metrics.request(route, 499);
+            exchange.unanswered(state, 499);
             false
         }
         Step::Reply { response, keep } => {
-            state.metrics.response(route, &response);
             let keep = keep && head.wants_keep_alive() && !state.stopping() && !state.draining();
-            let written = write_response(state, conn, &response, head.method == "HEAD", keep);
+            let head_only = head.method == "HEAD";
+            let written = write_response(state, conn, &exchange, &response, head_only, keep);
             written.is_ok() && keep
         }
     }

@@ -20,6 +20,7 @@
 //! and only then stops accepting.
 
 mod accept;
+mod access_log;
 mod admission;
 mod assets;
 mod config;
@@ -31,22 +32,28 @@ mod memory;
 mod memory_budget;
 mod metrics;
 mod multipart;
+mod observe;
+mod process_metrics;
 mod query;
+mod refusal;
 mod registry;
 mod render_route;
 mod routes;
 mod scene_body;
 
 pub use accept::NotAcceptable;
+pub use access_log::AccessLogTarget;
 pub use config::{BindError, ConfigError, ServiceConfig};
 pub use error::{ApiError, ApiErrorKind};
+pub use metrics::Served;
 pub use multipart::FormError;
 pub use render_route::{render_request, EncodedRender};
 
 use crate::threads;
+use access_log::AccessLog;
 use admission::{Admission, BodyBudget};
 use memory_budget::MemoryBudget;
-use metrics::Metrics;
+use metrics::{method_label, Metrics, RequestLabels};
 use registry::{Over, Quota, Registry};
 use std::io;
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -68,6 +75,8 @@ const TURN_AWAY_WRITE: Duration = Duration::from_millis(100);
 pub(crate) struct State {
     config: ServiceConfig,
     metrics: Metrics,
+    /// Where each request gets its line, if anywhere.
+    access_log: Option<AccessLog>,
     admission: Admission,
     memory: Arc<MemoryBudget>,
     bodies: BodyBudget,
@@ -115,12 +124,25 @@ impl Server {
         let baseline = memory_budget::resident_bytes().unwrap_or(0);
         config.check_memory_budget(baseline)?;
         let memory = MemoryBudget::new(config.memory_budget, baseline);
+        let metrics = Metrics::new();
+        let access_log = match &config.access_log {
+            Some(target) => Some(
+                AccessLog::open(target, metrics.access_log_dropped()).map_err(|source| {
+                    BindError::AccessLog {
+                        target: target.clone(),
+                        source,
+                    }
+                })?,
+            ),
+            None => None,
+        };
         let state = State {
             admission: Admission::new(config.concurrent_renders, config.queue),
             bodies: BodyBudget::new(config.body_memory, &memory),
             memory,
             config: config.clone(),
-            metrics: Metrics::default(),
+            metrics,
+            access_log,
             pool,
             connections: Registry::default(),
             stopping: AtomicBool::new(false),
@@ -159,6 +181,9 @@ impl Server {
         state.connections.stop();
         drop(trimming);
         let _ = trimmer.join();
+        if let Some(log) = &state.access_log {
+            log.close();
+        }
         Ok(())
     }
 
@@ -253,7 +278,11 @@ fn serve_connection(
         }
     }));
     if served.is_err() {
-        state.metrics.request("panic", 500);
+        state.metrics.request(&RequestLabels {
+            handler: "panic",
+            method: method_label(None),
+            code: 500,
+        });
     }
     drop(registration);
     state.metrics.connection_closed();
@@ -263,8 +292,20 @@ fn serve_connection(
 /// and close, at once.
 fn turn_away(state: &State, stream: &TcpStream, why: ApiErrorKind) {
     let response = ApiError::from(why).into_response(false);
-    let _ = response.write_to(stream, false, false, Instant::now() + TURN_AWAY_WRITE);
-    state.metrics.response("connection", &response);
+    let exchange = observe::Exchange {
+        stream,
+        head: None,
+        handler: "connection",
+        started: Instant::now(),
+    };
+    exchange.sending(state, &response);
+    let written = response.write_to(stream, false, false, Instant::now() + TURN_AWAY_WRITE);
+    let bytes = if written.is_ok() {
+        response.body.len() as u64
+    } else {
+        0
+    };
+    exchange.written(state, response.status, bytes);
     state.metrics.connection_closed();
 }
 
@@ -284,6 +325,11 @@ impl ServerHandle {
     /// the requests being handled finish, and waits for every connection.
     pub fn stop(mut self) {
         self.shut_down();
+    }
+
+    /// What the service has served so far.
+    pub fn served(&self) -> Served {
+        self.state.metrics.served()
     }
 
     /// The handle's [`Drainer`].
@@ -361,6 +407,11 @@ impl Drainer {
     /// answering have written their responses.
     pub fn stop(&self) {
         stop_accepting(&self.state, self.addr);
+    }
+
+    /// What the service has served so far.
+    pub fn served(&self) -> Served {
+        self.state.metrics.served()
     }
 
     fn admitted(&self) -> usize {

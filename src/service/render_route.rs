@@ -377,7 +377,7 @@ pub fn handle(
         Watched::Failed(error) => return Err(render_failed(error)),
     };
     let elapsed = started.elapsed();
-    state.metrics.render(elapsed, rendered.stats.rays.total());
+    state.metrics.render(elapsed, rendered.stats.rays);
     let encoded = encode(&rendered, format)?;
     drop(rendered);
     // Only the encoded image is held from here until it is written.

@@ -4,7 +4,6 @@ use super::admission::BodyCharge;
 use super::assets;
 use super::error::{ApiError, ApiErrorKind};
 use super::http::{Connection, RequestHead, Response};
-use super::memory_budget::resident_bytes;
 use super::metrics::Gauges;
 use super::render_route;
 use super::State;
@@ -127,17 +126,12 @@ fn get_resource(state: &State, resource: Resource) -> Response {
                 .with_header("Retry-After", crate::limits::RETRY_AFTER_S.to_string())
         }
         Resource::Health => text("ok\n".into()),
-        Resource::Metrics => Response::new(
-            200,
-            "text/plain; version=0.0.4; charset=utf-8",
-            state.metrics.render_text(Gauges {
-                admission: state.admission.counts(),
-                body_bytes: state.bodies.used(),
-                memory_bytes: state.memory.used(),
-                memory_budget: state.memory.limit(),
-                resident_bytes: resident_bytes(),
-            }),
-        ),
+        Resource::Metrics => state.metrics.exposition(Gauges {
+            admission: state.admission.counts(),
+            body_bytes: state.bodies.used(),
+            memory_bytes: state.memory.used(),
+            memory_budget: state.memory.limit(),
+        }),
         Resource::SceneList => Response::new(200, "application/json", assets::scene_list_json()),
         Resource::Scene(scene) => Response::new(200, "text/plain; charset=utf-8", scene),
         Resource::Asset(asset) => {

@@ -224,6 +224,33 @@ pub fn metric(addr: SocketAddr, metric: &str) -> Option<u64> {
         .find_map(|l| l.strip_prefix(metric)?.strip_prefix(' ')?.parse().ok())
 }
 
+/// The value of `metric` (the whole series name, labels included) in
+/// `/metrics`, for a value that need not be a whole number (seconds).
+pub fn metric_value(addr: SocketAddr, metric: &str) -> Option<f64> {
+    let text = Client::connect(addr)
+        .request("GET", "/metrics", &[], b"")
+        .text();
+    text.lines()
+        .find_map(|l| l.strip_prefix(metric)?.strip_prefix(' ')?.parse().ok())
+}
+
+/// The sum of every series of the family sample `name` (`voxtrace_rays_total`
+/// over its `kind` labels, say) in `/metrics`.
+pub fn metric_sum(addr: SocketAddr, name: &str) -> u64 {
+    let text = Client::connect(addr)
+        .request("GET", "/metrics", &[], b"")
+        .text();
+    text.lines()
+        .filter_map(|l| {
+            let rest = l.strip_prefix(name)?;
+            let value = rest
+                .strip_prefix(' ')
+                .or_else(|| rest.strip_prefix('{')?.split_once("} ").map(|(_, v)| v))?;
+            value.parse::<u64>().ok()
+        })
+        .sum()
+}
+
 /// Polls `/metrics` until `ready` holds of the metric's value.
 pub fn wait_until(addr: SocketAddr, metric_name: &str, ready: impl Fn(u64) -> bool) -> u64 {
     let started = Instant::now();
