@@ -5,6 +5,7 @@ use std::process::Command;
 use voxtrace::scene::{parse, SceneErrorKind as K};
 
 const HEAD: &str = "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n";
+const NEAR: &str = "the distance to the image plane (NEAR)";
 const SPHERE: &str = "SPHERE s1 0 0 -10 2 4 2 0.5 0 0 1 1 0.9 0 50";
 
 struct Case {
@@ -42,14 +43,14 @@ fn cases() -> Vec<Case> {
             with_head("SPHERE s1 0 0 -10 2 2,0 2 0.5 0 0 1 1 0.9 0 50"),
             7,
             21,
-            |k| matches!(k, K::ExpectedNumber { field: "<scl y>", found } if found == "2,0"),
+            |k| matches!(k, K::ExpectedNumber { field: "the sphere's y scale", found } if found == "2,0"),
         ),
         case(
             "missing field",
             with_head("SPHERE s1 0 0 -10 2 4 2 0.5 0 0 1 1 0.9 0"),
             7,
             42,
-            |k| matches!(k, K::MissingField { field: "<n>" }),
+            |k| matches!(k, K::MissingField { field: "the sphere's specular exponent" }),
         ),
         case(
             "extra token",
@@ -62,16 +63,16 @@ fn cases() -> Vec<Case> {
             matches!(
                 k,
                 K::NotFinite {
-                    field: "<pos y>",
+                    field: "the light's y position",
                     ..
                 }
             )
         }),
         case("inf", with_head("BACK 1 inf 0"), 7, 8, |k| {
-            matches!(k, K::NotFinite { field: "<g>", .. })
+            matches!(k, K::NotFinite { field: "the background's green component", .. })
         }),
         case("1e999", with_head("AMBIENT 1e999 0 0"), 7, 9, |k| {
-            matches!(k, K::NotFinite { field: "<Ir>", .. })
+            matches!(k, K::NotFinite { field: "the ambient light's red intensity", .. })
         }),
         case(
             "zero scale",
@@ -82,7 +83,7 @@ fn cases() -> Vec<Case> {
                 matches!(
                     k,
                     K::OutOfRange {
-                        field: "<scl y>",
+                        field: "the sphere's y scale",
                         ..
                     }
                 )
@@ -93,14 +94,14 @@ fn cases() -> Vec<Case> {
             "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 600 60.5\n",
             6,
             9,
-            |k| matches!(k, K::NotWhole { field: "<y>", .. }),
+            |k| matches!(k, K::NotWhole { field: "the number of rows", .. }),
         ),
         case(
             "zero RES",
             "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 0 600\n",
             6,
             5,
-            |k| matches!(k, K::OutOfRange { field: "<x>", .. }),
+            |k| matches!(k, K::OutOfRange { field: "the number of columns", .. }),
         ),
         case(
             "LEFT >= RIGHT",
@@ -139,10 +140,10 @@ fn cases() -> Vec<Case> {
             "NEAR 0\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n",
             1,
             6,
-            |k| matches!(k, K::OutOfRange { field: "NEAR", .. }),
+            |k| matches!(k, K::OutOfRange { field: NEAR, .. }),
         ),
         case("negative NEAR", "NEAR -2\n", 1, 6, |k| {
-            matches!(k, K::OutOfRange { field: "NEAR", .. })
+            matches!(k, K::OutOfRange { field: NEAR, .. })
         }),
         case("duplicate NEAR", format!("{HEAD}NEAR 2\n"), 7, 1, |k| {
             matches!(
@@ -167,24 +168,32 @@ fn cases() -> Vec<Case> {
             with_head("SPHERES s1 0 0 -10"),
             7,
             1,
-            |k| matches!(k, K::UnknownKeyword { found } if found == "SPHERES"),
+            |k| matches!(k, K::UnknownKeyword { found, suggestion: Some("SPHERE") } if found == "SPHERES"),
         ),
-        case("empty file", "", 1, 1, |k| {
-            matches!(k, K::MissingDirective { keyword: "NEAR" })
+        case("empty file", "", 0, 0, |k| {
+            matches!(k, K::MissingDirective { keyword: "NEAR", .. })
         }),
         case(
             "missing RES",
             "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\n",
-            5,
-            1,
-            |k| matches!(k, K::MissingDirective { keyword: "RES" }),
+            0,
+            0,
+            |k| matches!(k, K::MissingDirective { keyword: "RES", .. }),
         ),
         case(
             "binary garbage",
             b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR".to_vec(),
             1,
             1,
-            |k| matches!(k, K::UnknownKeyword { .. }),
+            |k| {
+                matches!(
+                    k,
+                    K::Binary {
+                        byte: 0x89,
+                        format: Some("a PNG image")
+                    }
+                )
+            },
         ),
         case(
             "name-less classic line",
@@ -204,7 +213,7 @@ fn cases() -> Vec<Case> {
                 matches!(
                     k,
                     K::MissingField {
-                        field: "<refract_index>"
+                        field: "the sphere's index of refraction"
                     }
                 )
             },
@@ -214,28 +223,28 @@ fn cases() -> Vec<Case> {
             format!("{HEAD}LIGHT l1 0 0 0 0.9 0.9"),
             7,
             23,
-            |k| matches!(k, K::MissingField { field: "<Ib>" }),
+            |k| matches!(k, K::MissingField { field: "the light's blue intensity" }),
         ),
         case(
             "negative colour",
             with_head("SPHERE s1 0 0 -10 2 4 2 0.5 -0.1 0 1 1 0.9 0 50"),
             7,
             29,
-            |k| matches!(k, K::OutOfRange { field: "<g>", .. }),
+            |k| matches!(k, K::OutOfRange { field: "the sphere's green component", .. }),
         ),
         case(
             "refraction pair cut in half",
             with_head(&format!("{SPHERE} 0.5")),
             7,
             49,
-            |k| matches!(k, K::MissingField { field: "<ior>" }),
+            |k| matches!(k, K::MissingField { field: "the sphere's index of refraction" }),
         ),
         case(
             "zero ior",
             with_head(&format!("{SPHERE} 0.5 0")),
             7,
             50,
-            |k| matches!(k, K::OutOfRange { field: "<ior>", .. }),
+            |k| matches!(k, K::OutOfRange { field: "the sphere's index of refraction", .. }),
         ),
         case(
             "OUTPUT without a name",
@@ -249,42 +258,42 @@ fn cases() -> Vec<Case> {
             "NEAR\t1\r\nLEFT\t-1\r\nRIGHT\tx\r\n",
             3,
             7,
-            |k| matches!(k, K::ExpectedNumber { field: "<r>", .. }),
+            |k| matches!(k, K::ExpectedNumber { field: "the right edge of the image plane", .. }),
         ),
         case(
             "a centre beyond f32's range",
             with_head("SPHERE far 1e39 0 -10 1 1 1 0.5 0 0 1 1 0.9 0 50"),
             7,
             12,
-            |k| matches!(k, K::TooLong { field: "<pos x>", value } if *value == 1e39),
+            |k| matches!(k, K::TooLong { field: "the sphere's x position", value } if *value == 1e39),
         ),
         case(
             "a light whose distance squared overflows f32",
             with_head("LIGHT sun 1e20 1e20 0 1 1 1"),
             7,
             11,
-            |k| matches!(k, K::TooLong { field: "<pos x>", .. }),
+            |k| matches!(k, K::TooLong { field: "the light's x position", .. }),
         ),
         case(
             "a scale whose inverse squared underflows",
             with_head("SPHERE wall 0 0 -10 1e19 1e19 1e19 0.5 0 0 1 1 0.9 0 50"),
             7,
             21,
-            |k| matches!(k, K::TooLong { field: "<scl x>", .. }),
+            |k| matches!(k, K::TooLong { field: "the sphere's x scale", .. }),
         ),
         case(
             "a scale whose inverse squared overflows",
             with_head("SPHERE dust 0 0 -1e-18 1e-19 1e-19 1e-19 0.5 0 0 1 1 0.9 0 50"),
             7,
             24,
-            |k| matches!(k, K::TooThin { field: "<scl x>", .. }),
+            |k| matches!(k, K::TooThin { field: "the sphere's x scale", .. }),
         ),
         case(
             "an image plane beyond f32's range",
             "NEAR 1\nLEFT -1e19\n",
             2,
             6,
-            |k| matches!(k, K::TooLong { field: "<l>", .. }),
+            |k| matches!(k, K::TooLong { field: "the left edge of the image plane", .. }),
         ),
         case(
             "an ellipsoid too flat for f32",
@@ -295,8 +304,8 @@ fn cases() -> Vec<Case> {
                 matches!(
                     k,
                     K::AxisRatio {
-                        thin_field: "<scl y>",
-                        wide_field: "<scl x>",
+                        thin_field: "the sphere's y scale",
+                        wide_field: "the sphere's x scale",
                         ..
                     }
                 )
@@ -311,7 +320,7 @@ fn cases() -> Vec<Case> {
                 matches!(
                     k,
                     K::LengthRatio { small, large }
-                        if (small.field, small.line, large.field, large.line) == ("<scl x>", 8, "<pos y>", 9)
+                        if (small.field, small.line, large.field, large.line) == ("the sphere's x scale", 8, "the light's y position", 9)
                 )
             },
         ),
@@ -327,14 +336,14 @@ fn cases() -> Vec<Case> {
             "LEFT -1e-10\nRIGHT 1e-10\nBOTTOM -1e-10\nTOP 1e-10\nRES 4 4\nSPHERE room 0 0 0 1e9 1e9 1e9 1 1 1 1 1 0 0 1\nNEAR 1e-10\n",
             7,
             6,
-            |k| matches!(k, K::LengthRatio { small, large } if small.field == "NEAR" && large.field == "<scl x>"),
+            |k| matches!(k, K::LengthRatio { small, large } if small.field == NEAR && large.field == "the sphere's x scale"),
         ),
         case(
             "a NUL byte near the start",
             format!("{HEAD}# x\0y\n"),
             7,
             4,
-            |k| matches!(k, K::Binary { byte: 0 }),
+            |k| matches!(k, K::Binary { byte: 0, format: None }),
         ),
         case(
             "a line past the limit",
@@ -348,7 +357,7 @@ fn cases() -> Vec<Case> {
             with_head("LIGHT lümière 0 0 0 1 1 é"),
             7,
             25,
-            |k| matches!(k, K::ExpectedNumber { field: "<Ib>", .. }),
+            |k| matches!(k, K::ExpectedNumber { field: "the light's blue intensity", .. }),
         ),
     ]
 }
@@ -367,10 +376,17 @@ fn library_reports_kind_line_and_column() {
             c.name
         );
         let message = err.to_string();
-        assert!(
-            message.starts_with(&format!("line {}, column {}: ", c.line, c.column)),
-            "{message}"
-        );
+        if err.is_located() {
+            let at = format!("line {}, column {}: ", c.line, c.column);
+            assert!(message.starts_with(&at), "{message}");
+        } else {
+            assert!(
+                !message.starts_with("line "),
+                "no line is blamed: {message}"
+            );
+        }
+        // Fields are named in words, not by the format's placeholders.
+        assert!(!message.contains('<'), "{}: {message}", c.name);
     }
 }
 
@@ -388,11 +404,12 @@ fn cli_exits_2_with_the_message_on_stderr() {
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{}: {stderr}", c.name);
-        assert!(
-            stderr.contains(&format!("line {}, column {}: ", c.line, c.column)),
-            "{}: {stderr}",
-            c.name
-        );
+        let at = if c.line > 0 {
+            format!(" --> {}:{}:{}\n", path.display(), c.line, c.column)
+        } else {
+            format!("voxtrace: {}: the scene has no ", path.display())
+        };
+        assert!(stderr.contains(&at), "{}: {stderr}", c.name);
         assert!(out.stdout.is_empty());
     }
     assert!(!dir.join("out.png").exists(), "no output for a bad scene");
