@@ -4,6 +4,8 @@
 //! scene file is never written over, OUTPUT names only a plain file, and a
 //! PNG never goes to a terminal.
 
+mod support;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -284,5 +286,43 @@ fn a_png_is_never_written_to_a_terminal() {
         screen.join().unwrap().is_empty(),
         "nothing reached the terminal"
     );
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The same limit reads the same on the command line and over HTTP.
+#[test]
+fn limits_are_worded_alike_on_the_command_line_and_over_http() {
+    let dir = temp_dir("wording");
+    let scene = scene_path("testShadow.txt");
+    let scene = scene.to_str().unwrap();
+    let text = fs::read(scene).unwrap();
+    let server = support::start(voxtrace::service::ServiceConfig {
+        max_body: 100,
+        ..Default::default()
+    });
+    let mut client = support::Client::connect(server.addr());
+    for (flag, value, query) in [("--spp", "5000", "spp=5000"), ("--depth", "65", "depth=65")] {
+        let out = voxtrace(&dir, &["render", scene, flag, value]);
+        assert_eq!(out.status.code(), Some(2));
+        let reply = client.request("POST", &format!("/render?{query}"), &[], b"x");
+        assert_eq!(reply.status, 400);
+        let message = reply.text();
+        assert!(
+            stderr(&out).contains(message.trim_end()),
+            "{}\n{message}",
+            stderr(&out)
+        );
+    }
+    let out = voxtrace(&dir, &["render", scene, "--max-scene-bytes", "100"]);
+    assert_eq!(out.status.code(), Some(2));
+    let reply = client.request("POST", "/render", &[], &text);
+    assert_eq!(reply.status, 413);
+    let message = format!(
+        "the scene has {} bytes, more than the limit of 100",
+        text.len()
+    );
+    assert_eq!(reply.text(), format!("{message}\n"));
+    assert!(stderr(&out).contains(&message), "{}", stderr(&out));
+    server.stop();
     fs::remove_dir_all(&dir).unwrap();
 }

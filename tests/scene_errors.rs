@@ -1,7 +1,10 @@
 //! Malformed scenes: each gives the right error kind at the right line and
 //! column, through the library and through `voxtrace render` (exit code 2).
 
+mod support;
+
 use std::process::Command;
+use support::cli::{scratch_dir, stderr, voxtrace_in};
 use voxtrace::scene::{parse, SceneErrorKind as K};
 
 const HEAD: &str = "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n";
@@ -425,4 +428,204 @@ fn cli_usage_errors_exit_2_and_missing_files_exit_1() {
     assert_eq!(status(&["frobnicate"]), Some(2));
     assert_eq!(status(&["render", "/nonexistent/scene.txt"]), Some(1));
     assert_eq!(status(&["--help"]), Some(0));
+}
+
+/// The message `voxtrace render` gives for `text` read from the file
+/// `name` (or from standard input when `name` is `-`), without the
+/// trailing newline, and its exit code.
+fn cli_message(name: &str, text: &[u8]) -> (String, Option<i32>) {
+    let dir = scratch_dir(&format!("message-{}", name.replace('.', "-")));
+    let out = if name == "-" {
+        voxtrace_in(&dir, &["render", "-", "-o", "out.png"], Some(text))
+    } else {
+        std::fs::write(dir.join(name), text).unwrap();
+        voxtrace_in(&dir, &["render", name, "-o", "out.png"], None)
+    };
+    assert!(!dir.join("out.png").exists(), "no image for a bad scene");
+    std::fs::remove_dir_all(&dir).unwrap();
+    let message = stderr(&out).trim_end_matches('\n').to_owned();
+    (message, out.status.code())
+}
+
+#[test]
+fn the_line_is_shown_with_carets_under_the_column_as_rustc_shows_it() {
+    let bad = with_head("SPHERE s1 0 0 -10 2 2,0 2 0.5 0 0 1 1 0.9 0 50");
+    assert_eq!(
+        cli_message("bad.txt", bad.as_bytes()),
+        (
+            [
+                "voxtrace: expected a number for the sphere's y scale, found \"2,0\"",
+                " --> bad.txt:7:21",
+                "  |",
+                "7 | SPHERE s1 0 0 -10 2 2,0 2 0.5 0 0 1 1 0.9 0 50",
+                "  |                     ^^^",
+            ]
+            .join("\n"),
+            Some(2)
+        )
+    );
+    // A TAB before the column widens the line as a terminal does, and the
+    // caret moves with it; from standard input the origin is `<stdin>`.
+    let tabbed = "NEAR\t1\nLEFT\t-1\nRIGHT\t\tx\n";
+    assert_eq!(
+        cli_message("-", tabbed.as_bytes()).0,
+        [
+            "voxtrace: expected a number for the right edge of the image plane, found \"x\"",
+            " --> <stdin>:3:8",
+            "  |",
+            "3 | RIGHT        x",
+            "  |              ^",
+        ]
+        .join("\n")
+    );
+}
+
+#[test]
+fn a_long_line_is_cut_around_the_column_and_a_wide_line_number_widens_the_gutter() {
+    let mut text = String::from(HEAD);
+    for i in 0..5 {
+        text += &format!("# comment {i}\n");
+    }
+    let name = "x".repeat(150);
+    let line = format!("LIGHT {name} 0 0 0 1 1 oops # {}", "y".repeat(150));
+    text += &format!("{line}\n");
+    let (message, code) = cli_message("long.txt", text.as_bytes());
+    assert_eq!(code, Some(2));
+    // The 100 characters around "oops", at index 167: 50 before it.
+    assert_eq!(&line[167..171], "oops");
+    assert_eq!(
+        message,
+        [
+            "voxtrace: expected a number for the light's blue intensity, found \"oops\"".to_owned(),
+            "  --> long.txt:12:168".to_owned(),
+            "   |".to_owned(),
+            format!("12 | ...{}...", &line[117..217]),
+            format!("   | {}^^^^", " ".repeat(3 + 50)),
+        ]
+        .join("\n")
+    );
+}
+
+#[test]
+fn a_misspelt_keyword_gets_the_nearest_one() {
+    let (message, code) = cli_message("typo.txt", format!("{HEAD}BAKC 0 0 0\n").as_bytes());
+    assert_eq!(code, Some(2));
+    assert!(
+        message.starts_with(
+            "voxtrace: unknown directive \"BAKC\": did you mean BACK?\n --> typo.txt:7:1\n"
+        ),
+        "{message}"
+    );
+    let e = parse(format!("{HEAD}CAMERA 0 0 0\n")).unwrap_err();
+    assert_eq!(
+        e.kind,
+        K::UnknownKeyword {
+            found: "CAMERA".into(),
+            suggestion: None
+        },
+        "nothing near: the whole list instead"
+    );
+    assert!(e.to_string().contains("(expected NEAR, LEFT,"), "{e}");
+}
+
+#[test]
+fn binary_files_are_named_for_their_kind_and_not_shown() {
+    let elf = b"\x7fELF\x02\x01\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00\x03\x00>\x00\n\x01";
+    let png = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x00\x10";
+    for (bytes, kind) in [(&elf[..], "an ELF executable"), (&png[..], "a PNG image")] {
+        let e = parse(bytes).unwrap_err();
+        assert!(
+            matches!(e.kind, K::Binary { format: Some(k), .. } if k == kind),
+            "{e}"
+        );
+        assert_eq!(
+            cli_message("-", bytes),
+            (
+                format!(
+                    "voxtrace: this looks like a binary file ({kind}), not a scene\n --> <stdin>:1:1"
+                ),
+                Some(2)
+            )
+        );
+    }
+}
+
+#[test]
+fn a_missing_res_is_reported_as_missing_with_the_line_to_add() {
+    let text = "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\n# the end\n";
+    let e = parse(text).unwrap_err();
+    assert!(!e.is_located());
+    assert_eq!(
+        e.to_string(),
+        "the scene has no RES line: add one, such as `RES 512 512`"
+    );
+    assert_eq!(
+        cli_message("nores.txt", text.as_bytes()),
+        (
+            "voxtrace: nores.txt: the scene has no RES line: add one, such as `RES 512 512`".into(),
+            Some(2)
+        )
+    );
+}
+
+#[test]
+fn fields_are_spelled_out_in_words() {
+    for (line, message) in [
+        (
+            "NEAR x",
+            "expected a number for the distance to the image plane (NEAR), found \"x\"",
+        ),
+        (
+            "NEAR -1",
+            "the distance to the image plane (NEAR) must be > 0, found -1",
+        ),
+        (
+            "LEFT",
+            "expected the left edge of the image plane, found the end of the line",
+        ),
+        (
+            "RES 0 4",
+            "the number of columns must be between 1 and 16384, found 0",
+        ),
+        (
+            "RES 4 4.5",
+            "the number of rows must be a whole number, found \"4.5\"",
+        ),
+        (
+            "BACK 1 -1 0",
+            "the background's green component must be ≥ 0, found -1",
+        ),
+        (
+            "AMBIENT x 0 0",
+            "expected a number for the ambient light's red intensity, found \"x\"",
+        ),
+        (
+            "LIGHT l 0 0 0 1 1",
+            "expected the light's blue intensity, found the end of the line",
+        ),
+        (
+            "SPHERE s 0 0 -5 1 0 1 1 1 1 1 1 1 0 50",
+            "the sphere's y scale must be non-zero, found 0",
+        ),
+        (
+            "SPHERE s 0 0 -5 1 1 1 1 1 1 1 1 1 0 x",
+            "expected a number for the sphere's specular exponent, found \"x\"",
+        ),
+        (
+            "SPHERE 0 0 -5 1 1 1 1 1 1 1 1 1 50 x 0 1",
+            "expected a number for the sphere's reflectivity, found \"x\"",
+        ),
+        (
+            "SPHERE s 0 0 -5 1 1 1 1 1 1 1 1 1 0 50 0.5 0",
+            "the sphere's index of refraction must be > 0, found 0",
+        ),
+    ] {
+        let text = if line.starts_with("NEAR") {
+            format!("{line}\n")
+        } else {
+            format!("NEAR 1\n{line}\n")
+        };
+        let e = parse(&text).unwrap_err();
+        assert_eq!(e.kind.to_string(), message, "{line}");
+    }
 }
