@@ -629,3 +629,27 @@ fn fields_are_spelled_out_in_words() {
         assert_eq!(e.kind.to_string(), message, "{line}");
     }
 }
+
+/// An error found once the whole text is read, on a line long gone from
+/// memory (the text is read 8 MiB at a time): the line is read again.
+#[test]
+fn a_line_far_behind_the_end_of_a_large_file_is_still_shown() {
+    let mut text = String::from("NEAR 1\nLEFT 1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n");
+    let comment = format!("# {}\n", "x".repeat(1000));
+    while text.len() < 9 << 20 {
+        text += &comment;
+    }
+    let (message, code) = cli_message("large.txt", text.as_bytes());
+    assert_eq!(code, Some(2));
+    assert_eq!(
+        message,
+        [
+            "voxtrace: LEFT (1) must be less than RIGHT (1)",
+            " --> large.txt:3:7",
+            "  |",
+            "3 | RIGHT 1",
+            "  |       ^",
+        ]
+        .join("\n")
+    );
+}
