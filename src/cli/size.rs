@@ -66,7 +66,7 @@ impl Size {
             Some(height) => height,
             None => {
                 let kept = (f64::from(self.width) * f64::from(rows) / f64::from(columns)).round();
-                side(ROWS_FIELD, &kept.max(1.0).to_string())?
+                image_side(ROWS_FIELD, kept.max(1.0)).map_err(SizeError)?
             }
         };
         Ok((self.width, height))
