@@ -67,6 +67,7 @@
 //! exactly as `POST /render` refuses. [`remote::render`] renders a frame in
 //! tiles on such services (`POST /render?region=…`) and stitches them.
 
+pub mod bounded;
 pub mod cli;
 pub mod geometry;
 pub mod index;

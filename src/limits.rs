@@ -16,6 +16,13 @@ pub const MAX_LINE_BYTES: usize = 64 * 1024;
 /// such bytes still fail as malformed tokens; only the start is worth a
 /// clearer message.
 pub const BINARY_SNIFF_BYTES: usize = 8 * 1024;
+/// Widest stretch of a scene line an error message shows, in characters:
+/// a longer line is cut around the column at fault, as compilers do, so a
+/// 64 KiB line costs the terminal one line.
+pub const SNIPPET_CHARS: usize = 100;
+/// Columns a TAB takes where an error message shows its line, so the
+/// caret under it lands where the terminal put the character at fault.
+pub const SNIPPET_TAB_WIDTH: usize = 4;
 /// Largest scene file `voxtrace render` reads unless told otherwise
 /// (`--max-scene-bytes`): 1.5 GiB. 10^7 spheres as `voxtrace gen` writes
 /// them take 1.01 GB (uniform) to 1.12 GB (mixed sizes, all ellipsoids and

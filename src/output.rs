@@ -22,12 +22,29 @@ pub enum Format {
 }
 
 impl Format {
-    /// PNG for `.png` (any case), PPM otherwise.
+    pub const ALL: [Format; 2] = [Format::Png, Format::Ppm];
+
+    /// The format `path`'s extension names (`.png`, `.ppm`, any case), if any.
+    pub fn from_extension(path: &Path) -> Option<Format> {
+        let extension = path.extension()?.to_str()?;
+        Format::ALL
+            .into_iter()
+            .find(|f| extension.eq_ignore_ascii_case(f.extension()))
+    }
+
+    /// PNG for `.png` (any case), PPM otherwise: for a name that must end
+    /// in one of the two whatever it says (a scene's OUTPUT).
     pub fn from_path(path: &Path) -> Format {
-        match path.extension().and_then(|e| e.to_str()) {
-            Some(ext) if ext.eq_ignore_ascii_case("png") => Format::Png,
-            _ => Format::Ppm,
-        }
+        Format::from_extension(path).unwrap_or(Format::Ppm)
+    }
+
+    /// `.png and .ppm`: the extensions voxtrace writes, for messages.
+    pub fn extensions() -> String {
+        let names: Vec<String> = Format::ALL
+            .iter()
+            .map(|f| format!(".{}", f.extension()))
+            .collect();
+        names.join(" and ")
     }
 
     pub fn mime_type(self) -> &'static str {
@@ -99,6 +116,17 @@ impl Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn extensions_name_formats_in_any_case_and_others_none() {
+        let of = |p: &str| Format::from_extension(Path::new(p));
+        assert_eq!(of("a.png"), Some(Format::Png));
+        assert_eq!(of("a.PPM"), Some(Format::Ppm));
+        assert_eq!(of("a.jpg"), None);
+        assert_eq!(of("png"), None, "a name, not an extension");
+        assert_eq!(Format::from_path(Path::new("a.jpg")), Format::Ppm);
+        assert_eq!(Format::extensions(), ".png and .ppm");
+    }
 
     #[test]
     fn ppm_header_and_png_round_trip() {

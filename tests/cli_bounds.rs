@@ -4,6 +4,8 @@
 //! scene file is never written over, OUTPUT names only a plain file, and a
 //! PNG never goes to a terminal.
 
+mod support;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -62,7 +64,7 @@ fn dev_zero_is_refused_as_binary_on_its_first_line() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(
         stderr(&out).contains(
-            "/dev/zero: line 1, column 1: byte 0x00 is a control character: this is binary data"
+            "voxtrace: byte 0x00 is a control character: this looks like a binary file, not a scene\n --> /dev/zero:1:1\n"
         ),
         "{}",
         stderr(&out)
@@ -88,7 +90,7 @@ fn a_sparse_2_gib_file_is_refused_for_its_size_and_read_no_further_than_its_erro
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(
         stderr(&out).contains(
-            "huge.txt: the scene is larger than 1610612736 bytes; --max-scene-bytes raises the limit"
+            "huge.txt: the scene has 2147483648 bytes, more than the limit of 1610612736; --max-scene-bytes raises the limit"
         ),
         "{}",
         stderr(&out)
@@ -99,7 +101,7 @@ fn a_sparse_2_gib_file_is_refused_for_its_size_and_read_no_further_than_its_erro
     let out = run(&raised);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(
-        stderr(&out).contains("huge.txt: line 1, column 1: byte 0x00 is a control character"),
+        stderr(&out).contains("byte 0x00 is a control character: this looks like a binary file, not a scene\n --> huge.txt:1:1\n"),
         "{}",
         stderr(&out)
     );
@@ -115,7 +117,13 @@ fn a_sparse_2_gib_file_is_refused_for_its_size_and_read_no_further_than_its_erro
     let out = run(&raised);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(
-        stderr(&out).contains("huge.txt: line 1, column 6: expected a number for <n>, found \"x\""),
+        stderr(&out).contains(concat!(
+            "voxtrace: expected a number for the distance to the image plane (NEAR), found \"x\"\n",
+            " --> huge.txt:1:6\n",
+            "  |\n",
+            "1 | NEAR x\n",
+            "  |      ^\n"
+        )),
         "{}",
         stderr(&out)
     );
@@ -146,32 +154,44 @@ fn the_scene_file_is_never_written_over() {
     assert_eq!(fs::read(dir.join("self.txt")).unwrap(), original);
     assert!(fs::read(dir.join("self.ppm")).unwrap().starts_with(b"P6\n"));
 
-    // -o naming it, under any spelling, is refused.
+    // -o naming it is refused: a `.txt` for its extension, before anything
+    // is read.
     let dir_name = dir.file_name().unwrap().to_str().unwrap();
+    for output in ["self.txt", "./self.txt", &format!("../{dir_name}/self.txt")] {
+        let out = voxtrace(&dir, &["render", "self.txt", "-o", output]);
+        assert_eq!(out.status.code(), Some(2), "{output}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("cannot tell the image format from the name"),
+            "{}",
+            stderr(&out)
+        );
+        assert_eq!(fs::read(dir.join("self.txt")).unwrap(), original);
+    }
+    // A scene with an image name, named by -o under any spelling, or a
+    // link to a scene: refused for being the scene.
+    let shot = scene_named(&dir, "shot.ppm", "other.ppm");
     let mut spellings = vec![
-        "self.txt".to_owned(),
-        "./self.txt".to_owned(),
-        format!("../{dir_name}/self.txt"),
+        ("shot.ppm", "shot.ppm".to_owned()),
+        ("shot.ppm", "./shot.ppm".to_owned()),
+        ("shot.ppm", format!("../{dir_name}/shot.ppm")),
     ];
     #[cfg(unix)]
     {
         std::os::unix::fs::symlink(dir.join("self.txt"), dir.join("link.ppm")).unwrap();
-        spellings.push("link.ppm".to_owned());
+        spellings.push(("self.txt", "link.ppm".to_owned()));
     }
-    for output in &spellings {
-        let out = voxtrace(&dir, &["render", "self.txt", "-o", output]);
+    for (scene, output) in &spellings {
+        let out = voxtrace(&dir, &["render", scene, "-o", output]);
         assert_eq!(out.status.code(), Some(2), "{output}: {}", stderr(&out));
         assert!(
-            stderr(&out)
-                .contains("is the scene file self.txt itself: refusing to write the image over it"),
+            stderr(&out).contains(&format!(
+                "is the scene file {scene} itself: refusing to write the image over it"
+            )),
             "{}",
             stderr(&out)
         );
-        assert_eq!(
-            fs::read(dir.join("self.txt")).unwrap(),
-            original,
-            "{output}"
-        );
+        assert_eq!(fs::read(dir.join("self.txt")).unwrap(), original);
+        assert_eq!(fs::read(dir.join("shot.ppm")).unwrap(), shot, "{output}");
     }
 
     // A scene whose own name is an image name, OUTPUT naming it.
@@ -266,5 +286,43 @@ fn a_png_is_never_written_to_a_terminal() {
         screen.join().unwrap().is_empty(),
         "nothing reached the terminal"
     );
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The same limit reads the same on the command line and over HTTP.
+#[test]
+fn limits_are_worded_alike_on_the_command_line_and_over_http() {
+    let dir = temp_dir("wording");
+    let scene = scene_path("testShadow.txt");
+    let scene = scene.to_str().unwrap();
+    let text = fs::read(scene).unwrap();
+    let server = support::start(voxtrace::service::ServiceConfig {
+        max_body: 100,
+        ..Default::default()
+    });
+    let mut client = support::Client::connect(server.addr());
+    for (flag, value, query) in [("--spp", "5000", "spp=5000"), ("--depth", "65", "depth=65")] {
+        let out = voxtrace(&dir, &["render", scene, flag, value]);
+        assert_eq!(out.status.code(), Some(2));
+        let reply = client.request("POST", &format!("/render?{query}"), &[], b"x");
+        assert_eq!(reply.status, 400);
+        let message = reply.text();
+        assert!(
+            stderr(&out).contains(message.trim_end()),
+            "{}\n{message}",
+            stderr(&out)
+        );
+    }
+    let out = voxtrace(&dir, &["render", scene, "--max-scene-bytes", "100"]);
+    assert_eq!(out.status.code(), Some(2));
+    let reply = client.request("POST", "/render", &[], &text);
+    assert_eq!(reply.status, 413);
+    let message = format!(
+        "the scene has {} bytes, more than the limit of 100",
+        text.len()
+    );
+    assert_eq!(reply.text(), format!("{message}\n"));
+    assert!(stderr(&out).contains(&message), "{}", stderr(&out));
+    server.stop();
     fs::remove_dir_all(&dir).unwrap();
 }

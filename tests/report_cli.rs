@@ -74,3 +74,34 @@ fn report_with_a_missing_suite_fails_with_exit_code_1() {
         .unwrap();
     assert_eq!(status.code(), Some(1));
 }
+
+/// Run from anywhere, the report finds the scenes that ship in the source
+/// tree it was built from, as it does in the tree itself.
+#[test]
+fn report_runs_outside_the_source_tree() {
+    let elsewhere =
+        std::env::temp_dir().join(format!("voxtrace-report-away-{}", std::process::id()));
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_voxtrace"))
+        .current_dir(&elsewhere)
+        .args([
+            "report",
+            "--families",
+            "hard",
+            "--reps",
+            "1",
+            "--aa-size",
+            "8",
+        ])
+        .args(["--out", "away"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let md = std::fs::read_to_string(elsewhere.join("away/report.md")).unwrap();
+    assert!(md.contains("| hard/planet | recursion | f32 depth 5 |"));
+    std::fs::remove_dir_all(&elsewhere).unwrap();
+}

@@ -157,7 +157,7 @@ fn a_plate_up_to_the_axis_ratio_renders_as_in_f64() {
         matches!(
             e.kind,
             K::AxisRatio {
-                thin_field: "<scl y>",
+                thin_field: "the sphere's y scale",
                 ..
             }
         ),
@@ -174,7 +174,9 @@ fn a_sphere_beyond_f32_range_is_refused_rather_than_blanking_the_scene() {
     scene.spheres.push(far);
     let e = reparsed(&scene).unwrap_err();
     assert_eq!(e.line, 12, "{e}");
-    assert!(matches!(e.kind, K::TooLong { field: "<pos x>", value } if value == 1e39));
+    assert!(
+        matches!(e.kind, K::TooLong { field: "the sphere's x position", value } if value == 1e39)
+    );
     let blank = render::<f32>(&scene);
     assert!(blank.rgb.chunks(3).all(|p| p == [0, 0, 0]));
     assert!(mismatches(&scene) > 100);

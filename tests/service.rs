@@ -137,7 +137,9 @@ fn routes_methods_and_head() {
         .header("content-type")
         .unwrap()
         .starts_with("text/html"));
-    assert!(page.text().contains("<script type=\"module\" src=\"/app.js\""));
+    assert!(page
+        .text()
+        .contains("<script type=\"module\" src=\"/app.js\""));
     for (path, kind) in [("/style.css", "text/css"), ("/app.js", "text/javascript")] {
         let asset = client.request("GET", path, &[], b"");
         assert_eq!(asset.status, 200, "{path}");

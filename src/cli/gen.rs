@@ -3,6 +3,7 @@
 use super::choice::choice;
 use super::CliError;
 use crate::limits;
+use crate::scene;
 use crate::tools::gen::{generate, Distribution, GenOptions};
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -50,14 +51,12 @@ pub fn run(args: GenArgs) -> Result<(), CliError> {
             Err(CliError::Usage(format!("--{name} must be between 0 and 1")))
         }
     };
-    let (width, height) = (args.res[0], args.res[1]);
-    let side = 1..=limits::MAX_RESOLUTION;
-    if !side.contains(&width) || !side.contains(&height) {
-        return Err(CliError::Usage(format!(
-            "--res must be between 1 and {} on each side",
-            limits::MAX_RESOLUTION
-        )));
-    }
+    let side = |field, value| {
+        scene::image_side(field, f64::from(value))
+            .map_err(|e| CliError::Usage(format!("--res: {e}")))
+    };
+    let width = side(scene::COLUMNS_FIELD, args.res[0])?;
+    let height = side(scene::ROWS_FIELD, args.res[1])?;
     if args.spheres > limits::MAX_SPHERES {
         return Err(CliError::Usage(format!(
             "--spheres must be at most {}",

@@ -3,6 +3,9 @@
 
 mod bench;
 mod choice;
+mod completions;
+mod cores;
+mod examples;
 mod gen;
 mod load;
 mod output_path;
@@ -14,6 +17,8 @@ mod report;
 mod scene_input;
 mod serve;
 mod signals;
+mod size;
+mod summary;
 
 use crate::threads::Threads;
 use clap::{Parser, Subcommand};
@@ -34,17 +39,26 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene file to PPM or PNG.
+    #[command(after_help = examples::help(examples::RENDER))]
     Render(render::RenderArgs),
     /// Serve renders over HTTP: POST a scene to /render, get a PNG.
+    #[command(after_help = examples::help(examples::SERVE))]
     Serve(serve::ServeArgs),
     /// Load-test the render service (closed or open loop) and report throughput and latency.
+    #[command(after_help = examples::help(examples::LOAD))]
     Load(load::LoadArgs),
     /// Write a random scene (uniform, mixed or clustered) in the classic dialect.
+    #[command(after_help = examples::help(examples::GEN))]
     Gen(gen::GenArgs),
     /// Measure parse, index build and ray speed against brute force.
+    #[command(after_help = examples::help(examples::BENCH))]
     Bench(bench::BenchArgs),
     /// Render a fixed suite under variants and report speed against error.
+    #[command(after_help = examples::help(examples::REPORT))]
     Report(report::ReportArgs),
+    /// Write the shell completion script for bash, zsh, fish, elvish or PowerShell.
+    #[command(after_help = examples::help(examples::COMPLETIONS))]
+    Completions(completions::CompletionsArgs),
 }
 
 /// Why a command failed. Every failure of every command is one of these,
@@ -52,10 +66,7 @@ enum Command {
 #[derive(Debug)]
 pub enum CliError {
     /// The scene text is invalid.
-    Scene {
-        path: String,
-        error: crate::scene::SceneError,
-    },
+    Scene(Box<scene_input::BadScene>),
     /// The arguments make no sense together.
     Usage(String),
     /// The arguments parse, but what they ask is refused.
@@ -96,7 +107,7 @@ impl CliError {
         use crate::tools::bench::BenchError;
         use crate::tools::load::LoadError;
         let usage = match self {
-            CliError::Scene { .. } | CliError::Usage(_) | CliError::Refused(_) => true,
+            CliError::Scene(_) | CliError::Usage(_) | CliError::Refused(_) => true,
             CliError::Url(_) | CliError::Duration(_) => true,
             CliError::Read { .. } | CliError::Write { .. } | CliError::Serving(_) => false,
             CliError::Encode(_) | CliError::Json(_) | CliError::Pool(_) => false,
@@ -127,7 +138,7 @@ impl CliError {
 impl fmt::Display for CliError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            CliError::Scene { path, error } => write!(f, "{path}: {error}"),
+            CliError::Scene(bad) => write!(f, "{bad}"),
             CliError::Usage(why) => write!(f, "{why}"),
             CliError::Refused(refusal) => write!(f, "{refusal}"),
             CliError::Read { what, error } => write!(f, "cannot read {what}: {error}"),
@@ -175,6 +186,7 @@ where
         Command::Gen(args) => gen::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Report(args) => report::run(args),
+        Command::Completions(args) => completions::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -185,7 +197,9 @@ where
     }
 }
 
-/// The pool a command runs in: `--threads` threads, or one per core.
+/// The pool a command runs in: `--threads` threads, or one per core; a
+/// count over the cores is warned about.
 fn thread_pool(threads: Option<Threads>) -> Result<rayon::ThreadPool, CliError> {
+    cores::warn_if_oversubscribed(threads);
     crate::threads::pool(threads.unwrap_or_default()).map_err(CliError::Pool)
 }

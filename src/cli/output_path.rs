@@ -2,6 +2,7 @@
 //! over or to.
 
 use super::refusal::Refusal;
+use super::scene_input::is_stdin;
 use super::CliError;
 use crate::output::Format;
 use crate::scene::Scene;
@@ -17,24 +18,56 @@ const MAX_STEM_CHARS: usize = 100;
 pub enum Destination {
     /// `-o -`: PNG on standard output.
     Stdout,
-    File(PathBuf),
+    File {
+        path: PathBuf,
+        format: Format,
+    },
 }
 
 impl Destination {
-    /// `-o` as given, else the scene's OUTPUT name (reduced by
-    /// [`output_name`]), else the scene file's stem with `.ppm`, in the
-    /// current directory.
-    pub fn choose(given: Option<&Path>, scene: &Scene, scene_path: &Path) -> Destination {
-        match given {
-            Some(path) if path == Path::new("-") => Destination::Stdout,
-            Some(path) => Destination::File(path.to_owned()),
-            None => Destination::File(
-                scene
-                    .output
-                    .as_deref()
-                    .and_then(output_name)
-                    .unwrap_or_else(|| stem_name(scene_path)),
-            ),
+    /// `-o` as given: `-` for standard output, else a file whose extension
+    /// names the format. Any other extension is refused rather than guessed:
+    /// `x.jpg` holding a PPM would be a file no viewer opens.
+    pub fn given(path: &Path) -> Result<Destination, CliError> {
+        if path == Path::new("-") {
+            return Ok(Destination::Stdout);
+        }
+        match Format::from_extension(path) {
+            Some(format) => Ok(Destination::File {
+                path: path.to_owned(),
+                format,
+            }),
+            None => Err(CliError::Refused(Refusal::UnknownFormat {
+                output: path.to_owned(),
+            })),
+        }
+    }
+
+    /// Without `-o`: the scene's OUTPUT name (reduced by [`output_name`]),
+    /// else the scene file's stem with `.ppm` (`render.ppm` for standard
+    /// input), in the current directory.
+    pub fn default_for(scene: &Scene, scene_path: &Path) -> Destination {
+        let path = scene
+            .output
+            .as_deref()
+            .and_then(output_name)
+            .unwrap_or_else(|| stem_name(scene_path));
+        let format = Format::from_path(&path);
+        Destination::File { path, format }
+    }
+
+    /// The destination's name in messages.
+    pub fn name(&self) -> String {
+        match self {
+            Destination::Stdout => "<stdout>".to_owned(),
+            Destination::File { path, .. } => path.display().to_string(),
+        }
+    }
+
+    pub fn format(&self) -> Format {
+        match self {
+            Destination::Stdout => Format::Png,
+            Destination::File { format, .. } => *format,
         }
     }
 }
@@ -69,9 +102,13 @@ pub fn output_name(name: &str) -> Option<PathBuf> {
     Some(PathBuf::from(format!("{stem}.{}", format.extension())))
 }
 
-/// The scene file's stem with `.ppm`: the user's own choice of name.
+/// The scene file's stem with `.ppm`: the user's own choice of name;
+/// `render.ppm` for standard input, as the service names its downloads.
 fn stem_name(scene_path: &Path) -> PathBuf {
-    let stem = scene_path.file_stem().unwrap_or_else(|| "render".as_ref());
+    let stem = match scene_path.file_stem() {
+        Some(stem) if !is_stdin(scene_path) => stem,
+        _ => "render".as_ref(),
+    };
     PathBuf::from(stem).with_extension("ppm")
 }
 
@@ -86,7 +123,7 @@ pub fn refuse_terminal(destination: &Destination) -> Result<(), CliError> {
 /// Refuses to write the image over the scene file, whatever the path says
 /// (another spelling, a link): the same file is the same device and inode.
 pub fn refuse_overwriting(destination: &Destination, scene_path: &Path) -> Result<(), CliError> {
-    let Destination::File(output) = destination else {
+    let Destination::File { path: output, .. } = destination else {
         return Ok(());
     };
     if same_file(output, scene_path) {
@@ -139,6 +176,27 @@ mod tests {
         assert_eq!(name(".."), None);
         let long = "x".repeat(300);
         assert_eq!(name(&long).unwrap().len(), MAX_STEM_CHARS + ".ppm".len());
+    }
+
+    #[test]
+    fn given_names_need_an_image_extension() {
+        assert_eq!(
+            Destination::given(Path::new("-")).unwrap(),
+            Destination::Stdout
+        );
+        let png = Destination::given(Path::new("x.PNG")).unwrap();
+        assert_eq!(png.format(), Format::Png);
+        for name in ["x.jpg", "x", "x.png.bak"] {
+            assert!(
+                matches!(
+                    Destination::given(Path::new(name)),
+                    Err(CliError::Refused(Refusal::UnknownFormat { .. }))
+                ),
+                "{name}"
+            );
+        }
+        assert_eq!(stem_name(Path::new("-")), PathBuf::from("render.ppm"));
+        assert_eq!(stem_name(Path::new("a/b.txt")), PathBuf::from("b.ppm"));
     }
 
     #[test]

@@ -5,7 +5,8 @@ use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
 /// A progress bar on stderr counting `unit`s (rows, tiles), shown only on
-/// a terminal and only once the work has taken more than a second.
+/// a terminal, not when `quiet`, and only once the work has taken more
+/// than a second.
 pub struct Progress {
     bar: ProgressBar,
     started: Instant,
@@ -13,7 +14,7 @@ pub struct Progress {
 }
 
 impl Progress {
-    pub fn new(total: u32, unit: &str) -> Self {
+    pub fn new(total: u32, unit: &str, quiet: bool) -> Self {
         let bar =
             ProgressBar::with_draw_target(Some(u64::from(total)), ProgressDrawTarget::hidden());
         let template = format!("{{bar:40}} {{pos}}/{{len}} {unit}  {{elapsed}} (eta {{eta}})");
@@ -23,7 +24,7 @@ impl Progress {
         Progress {
             bar,
             started: Instant::now(),
-            terminal: std::io::stderr().is_terminal(),
+            terminal: !quiet && std::io::stderr().is_terminal(),
         }
     }
 

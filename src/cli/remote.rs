@@ -5,6 +5,7 @@ use super::output_path::{refuse_overwriting, Destination};
 use super::progress::Progress;
 use super::render::{write_image, RenderArgs};
 use super::scene_input::read_scene_text;
+use super::summary;
 use super::CliError;
 use crate::limits;
 use crate::remote::{self, RemoteConfig, TiledStats};
@@ -35,10 +36,11 @@ fn in_flight(text: &str) -> Result<usize, String> {
         .ok_or_else(|| format!("a whole number from 1 to {}", limits::MAX_TILES_IN_FLIGHT))
 }
 
-pub fn run(args: &RenderArgs, url: &str) -> Result<(), CliError> {
+/// Renders on the service at `url`; `given` is `-o`'s destination, if any.
+pub fn run(args: &RenderArgs, url: &str, given: Option<Destination>) -> Result<(), CliError> {
     let url = Url::parse(url).map_err(CliError::Url)?;
     let (text, scene) = read_scene_text(&args.scene, args.max_scene_bytes)?;
-    let destination = Destination::choose(args.output.as_deref(), &scene, &args.scene);
+    let destination = given.unwrap_or_else(|| Destination::default_for(&scene, &args.scene));
     refuse_overwriting(&destination, &args.scene)?;
     let path = url.target.split('?').next().unwrap_or("/");
     let config = RemoteConfig {
@@ -58,13 +60,19 @@ pub fn run(args: &RenderArgs, url: &str) -> Result<(), CliError> {
     let size = (scene.camera.width, scene.camera.height);
     drop(scene);
     let tiles = remote::plan(size.0, size.1, config.tiles).len() as u32;
-    let progress = Progress::new(tiles, "tiles");
+    let progress = Progress::new(tiles, "tiles", args.quiet);
     let rendered = remote::render(&config, &text, size, &|done| progress.update(done))
         .map_err(CliError::Remote)?;
     progress.finish();
     write_image(&rendered.image, &destination)?;
     if args.stats {
         print_stats(&rendered.stats);
+    }
+    if !args.quiet {
+        let stats = &rendered.stats;
+        let work = format!("{} tiles on {} workers", stats.tiles, stats.workers.len());
+        let line = summary::line(&destination.name(), size, args.spp, stats.elapsed, &work);
+        eprintln!("{line}");
     }
     Ok(())
 }

@@ -4,37 +4,48 @@ use super::choice::choice;
 use super::output_path::{refuse_overwriting, refuse_terminal, Destination};
 use super::progress::Progress;
 use super::scene_input::read_scene;
+use super::size::Size;
+use super::summary;
 use super::CliError;
+use crate::bounded::{self, OutOfRange};
 use crate::limits;
-use crate::output::Format;
 use crate::output::Image;
 use crate::render::{
     render_scene, IndexKind, Region, RenderOptions, Rendered, Rules, SpecularModel,
 };
 use crate::threads::Threads;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// The scene file (either dialect).
+    /// The scene file (either dialect); `-` reads standard input.
     pub(super) scene: PathBuf,
-    /// Output file; `.png` writes PNG, anything else binary PPM, `-` PNG to
-    /// stdout (not to a terminal). Default: the scene's OUTPUT name, reduced
-    /// to a plain file name ending in `.ppm` or `.png`, or `<scene>.ppm`, in
-    /// the current directory. The scene file itself is never written over.
+    /// Output file: `.png` writes PNG, `.ppm` binary PPM (any other name is
+    /// refused), `-` PNG to stdout (not to a terminal). Default: the scene's
+    /// OUTPUT name, reduced to a plain file name ending in `.ppm` or `.png`,
+    /// or `<scene>.ppm` (`render.ppm` from stdin), in the current directory.
+    /// The scene file itself is never written over.
     #[arg(short, long)]
     pub(super) output: Option<PathBuf>,
     /// Largest scene file to read, in bytes.
     #[arg(long, value_name = "BYTES", default_value_t = limits::DEFAULT_MAX_SCENE_BYTES)]
     pub(super) max_scene_bytes: u64,
     /// Samples per pixel (1 = the pixel's corner, as the course did; more = stratified, jittered).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = spp)]
     pub(super) spp: u32,
     /// Bounces of reflection/refraction (default: 3 classic, 16 browser dialect).
-    #[arg(long)]
+    #[arg(long, value_parser = depth)]
     pub(super) depth: Option<u32>,
+    /// Render at this size instead of RES (`WxH`, or `W` to keep RES's
+    /// aspect), for previews; the camera's window, so the field of view, is
+    /// the scene's.
+    #[arg(long, value_name = "WxH", conflicts_with = "remote")]
+    size: Option<Size>,
+    /// Print nothing on success: no progress bar, no summary line.
+    #[arg(short, long)]
+    pub(super) quiet: bool,
     /// Render threads, at least 1 (default: all cores). The image does not depend on it.
     #[arg(long)]
     threads: Option<Threads>,
@@ -65,6 +76,14 @@ pub struct RenderArgs {
     pub(super) rules: Rules,
 }
 
+fn spp(text: &str) -> Result<u32, OutOfRange> {
+    bounded::parse("spp", text, 1..=limits::MAX_SPP)
+}
+
+fn depth(text: &str) -> Result<u32, OutOfRange> {
+    bounded::parse("depth", text, 0..=limits::MAX_DEPTH)
+}
+
 fn rules_help(rules: Rules) -> &'static str {
     match rules {
         Rules::Default => "The scene format's rules (the course's newer keys)",
@@ -93,17 +112,24 @@ fn specular_help(model: SpecularModel) -> &'static str {
 }
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {
-    if args.output.as_deref() == Some(Path::new("-")) {
-        refuse_terminal(&Destination::Stdout)?;
+    let given = args.output.as_deref().map(Destination::given).transpose()?;
+    if let Some(destination) = &given {
+        refuse_terminal(destination)?;
     }
     if let Some(url) = &args.remote {
-        return super::remote::run(&args, url);
+        return super::remote::run(&args, url, given);
     }
     let pool = super::thread_pool(args.threads)?;
     let started = Instant::now();
-    let scene = pool.install(|| read_scene(&args.scene, args.max_scene_bytes))?;
+    let mut scene = pool.install(|| read_scene(&args.scene, args.max_scene_bytes))?;
     let parse_time = started.elapsed();
-    let destination = Destination::choose(args.output.as_deref(), &scene, &args.scene);
+    if let Some(size) = args.size {
+        let camera = &mut scene.camera;
+        (camera.width, camera.height) = size
+            .apply(camera.width, camera.height)
+            .map_err(|e| CliError::Usage(format!("--size: {e}")))?;
+    }
+    let destination = given.unwrap_or_else(|| Destination::default_for(&scene, &args.scene));
     refuse_overwriting(&destination, &args.scene)?;
     let options = RenderOptions {
         spp: args.spp,
@@ -117,7 +143,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         region: args.region,
     };
     let rows = args.region.map_or(scene.camera.height, |r| r.height());
-    let progress = Progress::new(rows, "rows");
+    let progress = Progress::new(rows, "rows", args.quiet);
     let rendered = pool
         .install(|| render_scene(&scene, &options, &|rows| progress.update(rows)))
         .map_err(CliError::Render)?;
@@ -126,24 +152,36 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     if args.stats {
         print_stats(&rendered, parse_time, pool.current_num_threads());
     }
+    if !args.quiet {
+        let image = &rendered.image;
+        let rays = format!("{} rays", summary::count(rendered.stats.rays.total()));
+        let size = (image.width, image.height);
+        let line = summary::line(
+            &destination.name(),
+            size,
+            args.spp,
+            started.elapsed(),
+            &rays,
+        );
+        eprintln!("{line}");
+    }
     Ok(())
 }
 
-/// Encodes `image` as `destination` asks (PNG for stdout or `.png`) and writes it.
+/// Encodes `image` as `destination` asks (PNG for stdout, else the file's
+/// format) and writes it.
 pub(super) fn write_image(image: &Image, destination: &Destination) -> Result<(), CliError> {
-    let format = match destination {
-        Destination::Stdout => Format::Png,
-        Destination::File(path) => Format::from_path(path),
+    let bytes = image
+        .encode(destination.format())
+        .map_err(CliError::Encode)?;
+    let result = match destination {
+        Destination::Stdout => std::io::stdout().lock().write_all(&bytes),
+        Destination::File { path, .. } => std::fs::write(path, &bytes),
     };
-    let bytes = image.encode(format).map_err(CliError::Encode)?;
-    let (result, name) = match destination {
-        Destination::Stdout => (
-            std::io::stdout().lock().write_all(&bytes),
-            "standard output".into(),
-        ),
-        Destination::File(path) => (std::fs::write(path, &bytes), path.display().to_string()),
-    };
-    result.map_err(|error| CliError::Write { what: name, error })
+    result.map_err(|error| CliError::Write {
+        what: destination.name(),
+        error,
+    })
 }
 
 fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {

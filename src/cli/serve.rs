@@ -111,6 +111,7 @@ impl ServeArgs {
 }
 
 pub fn run(args: ServeArgs) -> Result<(), CliError> {
+    super::cores::warn_if_oversubscribed(args.threads);
     // Before the server starts its threads, so that they inherit the mask.
     let signals = StopSignals::block();
     let server = Server::bind(args.config()).map_err(CliError::Serve)?;

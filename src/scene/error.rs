@@ -2,7 +2,9 @@ use crate::limits;
 use std::fmt;
 
 /// A scene that cannot be rendered, with where the problem is.
-/// Lines and columns count from 1; columns count characters.
+/// Lines and columns count from 1; columns count characters. Both are 0
+/// when no line is at fault: a required directive that never appears
+/// ([`SceneError::is_located`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneError {
     pub line: usize,
@@ -32,6 +34,8 @@ pub enum SceneErrorKind {
     },
     UnknownKeyword {
         found: String,
+        /// The keyword `found` is a likely misspelling of.
+        suggestion: Option<&'static str>,
     },
     /// A number outside the values the field allows; `rule` says which ones.
     OutOfRange {
@@ -49,9 +53,10 @@ pub enum SceneErrorKind {
         keyword: &'static str,
         first_line: usize,
     },
-    /// A required directive never appeared.
+    /// A required directive never appeared; `example` is such a line.
     MissingDirective {
         keyword: &'static str,
+        example: &'static str,
     },
     /// LEFT ≥ RIGHT or BOTTOM ≥ TOP.
     EmptyExtent {
@@ -95,9 +100,11 @@ pub enum SceneErrorKind {
     },
     /// A line longer than [`limits::MAX_LINE_BYTES`].
     LineTooLong,
-    /// A control byte near the start of the text: not a scene but binary data.
+    /// A control byte near the start of the text: not a scene but binary
+    /// data, of a known kind when its first bytes are that kind's signature.
     Binary {
         byte: u8,
+        format: Option<&'static str>,
     },
 }
 
@@ -120,8 +127,29 @@ fn number(value: f64) -> String {
     }
 }
 
+impl SceneError {
+    /// An error that belongs to no line of the text.
+    pub fn of_whole_scene(kind: SceneErrorKind) -> Self {
+        SceneError {
+            line: 0,
+            column: 0,
+            kind,
+        }
+    }
+
+    /// Whether a line and column are at fault (all but a missing directive).
+    pub fn is_located(&self) -> bool {
+        self.line > 0
+    }
+}
+
+/// One line, for logs and JSON fields: `line L, column C: what`, or only
+/// `what` when no line is at fault. `scene::Diagnostic` adds the source line.
 impl fmt::Display for SceneError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if !self.is_located() {
+            return write!(f, "{}", self.kind);
+        }
         write!(
             f,
             "line {}, column {}: {}",
@@ -138,7 +166,10 @@ impl fmt::Display for SceneErrorKind {
             NotFinite { field, found } => write!(f, "expected a finite number for {field}, found {found:?}"),
             MissingField { field } => write!(f, "expected {field}, found the end of the line"),
             ExtraToken { found } => write!(f, "unexpected {found:?} after the last field"),
-            UnknownKeyword { found } => write!(
+            UnknownKeyword { found, suggestion: Some(keyword) } => {
+                write!(f, "unknown directive {found:?}: did you mean {keyword}?")
+            }
+            UnknownKeyword { found, suggestion: None } => write!(
                 f,
                 "unknown directive {found:?} (expected NEAR, LEFT, RIGHT, BOTTOM, TOP, RES, SPHERE, LIGHT, BACK, AMBIENT or OUTPUT)"
             ),
@@ -147,7 +178,9 @@ impl fmt::Display for SceneErrorKind {
             Duplicate { keyword, first_line } => {
                 write!(f, "{keyword} is given again (first on line {first_line})")
             }
-            MissingDirective { keyword } => write!(f, "the scene has no {keyword} line"),
+            MissingDirective { keyword, example } => {
+                write!(f, "the scene has no {keyword} line: add one, such as `{example}`")
+            }
             EmptyExtent { low, high, low_value, high_value } => {
                 write!(f, "{low} ({low_value}) must be less than {high} ({high_value})")
             }
@@ -188,9 +221,12 @@ impl fmt::Display for SceneErrorKind {
                 limits::MAX_LENGTH_RATIO
             ),
             LineTooLong => write!(f, "the line is longer than {} bytes", limits::MAX_LINE_BYTES),
-            Binary { byte } => write!(
+            Binary { format: Some(format), .. } => {
+                write!(f, "this looks like a binary file ({format}), not a scene")
+            }
+            Binary { byte, format: None } => write!(
                 f,
-                "byte 0x{byte:02x} is a control character: this is binary data, not scene text"
+                "byte 0x{byte:02x} is a control character: this looks like a binary file, not a scene"
             ),
         }
     }

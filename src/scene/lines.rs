@@ -2,6 +2,7 @@
 //! for parallel parsing, and what a line must be before its tokens are read
 //! (not too long, and near the start of the text, not binary).
 
+use super::binary::{is_control, signature};
 use super::{SceneError, SceneErrorKind};
 use crate::limits;
 
@@ -47,18 +48,22 @@ pub(super) fn split_lines(text: &[u8]) -> impl Iterator<Item = &[u8]> {
     })
 }
 
+/// The text of line `number` (from 1) of `text`, for an error message;
+/// `None` past the last line.
+/// At most [`limits::MAX_LINE_BYTES`] and one byte of it, as the parser
+/// reads no more of a line.
+pub fn line_text(text: &[u8], number: usize) -> Option<String> {
+    let line = split_lines(text).nth(number.checked_sub(1)?)?;
+    let line = &line[..line.len().min(limits::MAX_LINE_BYTES + 1)];
+    Some(String::from_utf8_lossy(line).into_owned())
+}
+
 /// The 1-based character column of byte offset `offset` of `line`.
 pub(super) fn column_of(line: &[u8], offset: usize) -> usize {
     String::from_utf8_lossy(&line[..offset.min(line.len())])
         .chars()
         .count()
         + 1
-}
-
-/// A byte no scene text holds: C0 controls but TAB, LF and CR (a lone CR is
-/// how old Mac files end lines), and DEL.
-fn is_control(byte: u8) -> bool {
-    (byte < 0x20 && !matches!(byte, b'\t' | b'\n' | b'\r')) || byte == 0x7f
 }
 
 /// Checks line number `number`, which starts `start` bytes into the text
@@ -69,11 +74,17 @@ pub(super) fn check_line(number: usize, start: usize, line: &[u8]) -> Result<(),
         column: column_of(line, offset),
         kind,
     };
+    if let Some(format) = signature(line).filter(|_| start == 0) {
+        let byte = line[0];
+        let format = Some(format);
+        return Err(error(0, SceneErrorKind::Binary { byte, format }));
+    }
     if start < limits::BINARY_SNIFF_BYTES {
         let sniffed = &line[..line.len().min(limits::BINARY_SNIFF_BYTES - start)];
         if let Some(offset) = sniffed.iter().position(|&b| is_control(b)) {
             let byte = line[offset];
-            return Err(error(offset, SceneErrorKind::Binary { byte }));
+            let format = None;
+            return Err(error(offset, SceneErrorKind::Binary { byte, format }));
         }
     }
     if line.len() > limits::MAX_LINE_BYTES {
@@ -90,10 +101,22 @@ mod tests {
     fn control_bytes_near_the_start_are_binary_and_point_at_the_byte() {
         let e = check_line(3, 40, b"SPHERE \x00\x00").unwrap_err();
         assert_eq!((e.line, e.column), (3, 8));
-        assert_eq!(e.kind, SceneErrorKind::Binary { byte: 0 });
+        assert_eq!(
+            e.kind,
+            SceneErrorKind::Binary {
+                byte: 0,
+                format: None
+            }
+        );
         assert!(check_line(1, 0, "NEAR\t1\r # é".as_bytes()).is_ok());
         let e = check_line(1, 0, b"\x1b[0m").unwrap_err();
-        assert_eq!(e.kind, SceneErrorKind::Binary { byte: 0x1b });
+        assert_eq!(
+            e.kind,
+            SceneErrorKind::Binary {
+                byte: 0x1b,
+                format: None
+            }
+        );
         // Past the first bytes, such bytes are left to the tokens.
         assert!(check_line(9, limits::BINARY_SNIFF_BYTES, b"NEAR \x00").is_ok());
         let straddling = [b'x'; 16];

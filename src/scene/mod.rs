@@ -5,16 +5,20 @@
 //! `read` does the same from a stream, within size limits; `write` turns a
 //! scene back into classic text.
 
+mod binary;
 mod bounds;
+mod diagnostic;
 mod error;
 mod lines;
 mod parse;
 mod read;
 mod write;
 
+pub use diagnostic::Diagnostic;
 pub use error::{Length, SceneError, SceneErrorKind};
-pub use parse::parse;
-pub use read::{read, ReadError};
+pub use lines::line_text;
+pub use parse::{image_side, parse, COLUMNS_FIELD, ROWS_FIELD};
+pub use read::{read, ReadError, TooLarge};
 pub use write::{write_light, write_scene, write_sphere};
 
 use glam::DVec3;

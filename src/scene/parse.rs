@@ -31,8 +31,6 @@ pub(super) struct Parser {
     /// The number of the next line, and how far into the text it starts.
     next_line: usize,
     offset: usize,
-    /// The lines so far, a last one without a newline included.
-    lines: usize,
 }
 
 impl Parser {
@@ -41,7 +39,6 @@ impl Parser {
             builder: SceneBuilder::default(),
             next_line: 1,
             offset: 0,
-            lines: 0,
         }
     }
 
@@ -84,13 +81,15 @@ impl Parser {
                 return Err(self.builder.explain(error.line, line, error));
             }
             self.builder.extremes.merge(&chunk.extremes);
-            // A last line without a newline still counts.
-            let unterminated = usize::from(!text.is_empty() && !text.ends_with(b"\n"));
-            self.lines = first + newlines + unterminated - 1;
             self.next_line = first + newlines;
         }
         self.offset += text.len();
         Ok(())
+    }
+
+    /// The number of the line the next text fed starts with.
+    pub fn next_line(&self) -> usize {
+        self.next_line
     }
 
     /// Checks the start of the next line, whose end has not come yet (see
@@ -100,7 +99,7 @@ impl Parser {
     }
 
     pub fn finish(self) -> Result<Scene, SceneError> {
-        self.builder.finish(self.lines.max(1))
+        self.builder.finish()
     }
 }
 
@@ -207,45 +206,79 @@ impl Keyword {
             .into_iter()
             .find(|k| k.name().as_bytes().eq_ignore_ascii_case(token))
     }
+
+    /// The keyword `token` is most likely a misspelling of: the nearest by
+    /// edit distance (a swap of two neighbours counts one, as in `BAKC`),
+    /// if at most a third of its letters (and at least one) are off.
+    fn nearest(token: &str) -> Option<Keyword> {
+        let token = token.to_ascii_uppercase();
+        let allowed = (token.chars().count() / 3).max(1);
+        Keyword::ALL
+            .into_iter()
+            .map(|k| (strsim::osa_distance(&token, k.name()), k))
+            .filter(|&(distance, _)| distance <= allowed)
+            .min_by_key(|&(distance, _)| distance)
+            .map(|(_, k)| k)
+    }
+
+    /// A line that gives this directive, for the message when it is missing.
+    fn example(self) -> &'static str {
+        match self {
+            Keyword::Near => "NEAR 1",
+            Keyword::Left => "LEFT -1",
+            Keyword::Right => "RIGHT 1",
+            Keyword::Bottom => "BOTTOM -1",
+            Keyword::Top => "TOP 1",
+            Keyword::Res => "RES 512 512",
+            Keyword::Sphere => "SPHERE ball 0 0 -10 1 1 1 1 0 0 0.2 0.8 0.5 0 50",
+            Keyword::Light => "LIGHT sun 0 10 0 1 1 1",
+            Keyword::Back => "BACK 0 0 0",
+            Keyword::Ambient => "AMBIENT 0.2 0.2 0.2",
+            Keyword::Output => "OUTPUT image.png",
+        }
+    }
 }
 
-const CLASSIC_SPHERE_FIELDS: [&str; 16] = [
-    "<pos x>",
-    "<pos y>",
-    "<pos z>",
-    "<scl x>",
-    "<scl y>",
-    "<scl z>",
-    "<r>",
-    "<g>",
-    "<b>",
-    "<Ka>",
-    "<Kd>",
-    "<Ks>",
-    "<Kr>",
-    "<n>",
-    "<Krefract>",
-    "<ior>",
+/// The sphere's fields in words, in the classic dialect's order (the
+/// browser dialect swaps the exponent and the reflectivity, see [`sphere`]).
+const SPHERE_FIELDS: [&str; 16] = [
+    "the sphere's x position",
+    "the sphere's y position",
+    "the sphere's z position",
+    "the sphere's x scale",
+    "the sphere's y scale",
+    "the sphere's z scale",
+    "the sphere's red component",
+    "the sphere's green component",
+    "the sphere's blue component",
+    "the sphere's ambient coefficient",
+    "the sphere's diffuse coefficient",
+    "the sphere's specular coefficient",
+    "the sphere's reflectivity",
+    "the sphere's specular exponent",
+    "the sphere's refractivity",
+    "the sphere's index of refraction",
 ];
-const BROWSER_SPHERE_FIELDS: [&str; 16] = [
-    "<x>",
-    "<y>",
-    "<z>",
-    "<sx>",
-    "<sy>",
-    "<sz>",
-    "<r>",
-    "<g>",
-    "<b>",
-    "<k_a>",
-    "<k_d>",
-    "<k_s>",
-    "<n>",
-    "<k_r>",
-    "<k_refract>",
-    "<refract_index>",
+const LIGHT_FIELDS: [&str; 6] = [
+    "the light's x position",
+    "the light's y position",
+    "the light's z position",
+    "the light's red intensity",
+    "the light's green intensity",
+    "the light's blue intensity",
 ];
-const LIGHT_FIELDS: [&str; 6] = ["<pos x>", "<pos y>", "<pos z>", "<Ir>", "<Ig>", "<Ib>"];
+const BACK_FIELDS: [&str; 3] = [
+    "the background's red component",
+    "the background's green component",
+    "the background's blue component",
+];
+const AMBIENT_FIELDS: [&str; 3] = [
+    "the ambient light's red intensity",
+    "the ambient light's green intensity",
+    "the ambient light's blue intensity",
+];
+/// NEAR's value, in words.
+pub(super) const NEAR_FIELD: &str = "the distance to the image plane (NEAR)";
 
 /// Reads the tokens of one line, remembering where each starts.
 struct Tokens<'a> {
@@ -519,21 +552,23 @@ fn parse_line(
         return Ok(Directive::Blank);
     };
     let Some(keyword) = Keyword::from_token(word) else {
-        let found = String::from_utf8_lossy(word).chars().take(40).collect();
-        return Err(tokens.error_at(offset, SceneErrorKind::UnknownKeyword { found }));
+        let found: String = String::from_utf8_lossy(word).chars().take(40).collect();
+        let suggestion = Keyword::nearest(&found).map(Keyword::name);
+        let kind = SceneErrorKind::UnknownKeyword { found, suggestion };
+        return Err(tokens.error_at(offset, kind));
     };
     let directive = match keyword {
         Keyword::Near => {
-            let (value, offset) = tokens.number("<n>")?;
+            let (value, offset) = tokens.number(NEAR_FIELD)?;
             if value <= 0.0 {
                 let kind = SceneErrorKind::OutOfRange {
-                    field: "NEAR",
+                    field: NEAR_FIELD,
                     value,
                     rule: "> 0",
                 };
                 return Err(tokens.error_at(offset, kind));
             }
-            tokens.length_at("NEAR", value, offset)?;
+            tokens.length_at(NEAR_FIELD, value, offset)?;
             Directive::Extent(keyword, value, tokens.column(offset))
         }
         Keyword::Left | Keyword::Right | Keyword::Bottom | Keyword::Top => {
@@ -543,14 +578,12 @@ fn parse_line(
             Directive::Extent(keyword, value, tokens.column(offset))
         }
         Keyword::Res => Directive::Resolution(
-            resolution(&mut tokens, "<x>")?,
-            resolution(&mut tokens, "<y>")?,
+            resolution(&mut tokens, COLUMNS_FIELD)?,
+            resolution(&mut tokens, ROWS_FIELD)?,
         ),
-        Keyword::Back => {
-            Directive::Background(tokens.vector(&["<r>", "<g>", "<b>"], Tokens::non_negative)?)
-        }
+        Keyword::Back => Directive::Background(tokens.vector(&BACK_FIELDS, Tokens::non_negative)?),
         Keyword::Ambient => {
-            Directive::Ambient(tokens.vector(&["<Ir>", "<Ig>", "<Ib>"], Tokens::non_negative)?)
+            Directive::Ambient(tokens.vector(&AMBIENT_FIELDS, Tokens::non_negative)?)
         }
         Keyword::Output => {
             let (offset, name) = tokens.rest();
@@ -582,10 +615,10 @@ fn parse_line(
 
 fn extent_field(keyword: Keyword) -> &'static str {
     match keyword {
-        Keyword::Left => "<l>",
-        Keyword::Right => "<r>",
-        Keyword::Bottom => "<b>",
-        _ => "<t>",
+        Keyword::Left => "the left edge of the image plane",
+        Keyword::Right => "the right edge of the image plane",
+        Keyword::Bottom => "the bottom edge of the image plane",
+        _ => "the top edge of the image plane",
     }
 }
 
@@ -602,23 +635,31 @@ fn named_dialect(tokens: &mut Tokens) -> Dialect {
 
 fn resolution(tokens: &mut Tokens, field: &'static str) -> Result<u32, SceneError> {
     let (value, offset) = tokens.number(field)?;
+    image_side(field, value).map_err(|kind| tokens.error_at(offset, kind))
+}
+
+/// RES's first number, in words.
+pub const COLUMNS_FIELD: &str = "the number of columns";
+/// RES's second number, in words.
+pub const ROWS_FIELD: &str = "the number of rows";
+
+/// A side of the image ([`COLUMNS_FIELD`] or [`ROWS_FIELD`]): a whole number
+/// from 1 to [`limits::MAX_RESOLUTION`], given in RES or on the command line.
+pub fn image_side(field: &'static str, value: f64) -> Result<u32, SceneErrorKind> {
     if value.fract() != 0.0 {
         let found = format!("{value}");
-        return Err(tokens.error_at(offset, SceneErrorKind::NotWhole { field, found }));
+        return Err(SceneErrorKind::NotWhole { field, found });
     }
     if value < 1.0 || value > f64::from(limits::MAX_RESOLUTION) {
         let rule = "between 1 and 16384";
-        return Err(tokens.error_at(offset, SceneErrorKind::OutOfRange { field, value, rule }));
+        return Err(SceneErrorKind::OutOfRange { field, value, rule });
     }
     Ok(value as u32)
 }
 
 fn sphere(tokens: &mut Tokens) -> Result<(Sphere, Dialect), SceneError> {
     let dialect = named_dialect(tokens);
-    let fields = match dialect {
-        Dialect::Classic => &CLASSIC_SPHERE_FIELDS,
-        Dialect::Browser => &BROWSER_SPHERE_FIELDS,
-    };
+    let fields = &SPHERE_FIELDS;
     let center = tokens.vector(&fields[0..3], Tokens::length)?;
     let scale = tokens.scales(&fields[3..6])?;
     let color = tokens.vector(&fields[6..9], Tokens::non_negative)?;
@@ -631,8 +672,8 @@ fn sphere(tokens: &mut Tokens) -> Result<(Sphere, Dialect), SceneError> {
             tokens.non_negative(fields[13])?,
         ),
         Dialect::Browser => {
-            let shininess = tokens.non_negative(fields[12])?;
-            (tokens.non_negative(fields[13])?, shininess)
+            let shininess = tokens.non_negative(fields[13])?;
+            (tokens.non_negative(fields[12])?, shininess)
         }
     };
     // The classic dialect's refraction pair is optional; the browser's is not.
@@ -784,13 +825,12 @@ impl SceneBuilder {
         Ok(())
     }
 
-    fn finish(self, last_line: usize) -> Result<Scene, SceneError> {
-        let missing = |keyword: Keyword| SceneError {
-            line: last_line,
-            column: 1,
-            kind: SceneErrorKind::MissingDirective {
+    fn finish(self) -> Result<Scene, SceneError> {
+        let missing = |keyword: Keyword| {
+            SceneError::of_whole_scene(SceneErrorKind::MissingDirective {
                 keyword: keyword.name(),
-            },
+                example: keyword.example(),
+            })
         };
         let ((near, near_column), near_line) = self.near.ok_or_else(|| missing(Keyword::Near))?;
         let left = self.left.ok_or_else(|| missing(Keyword::Left))?;
@@ -802,7 +842,7 @@ impl SceneBuilder {
         check_extent((Keyword::Bottom, bottom), (Keyword::Top, top))?;
         self.extremes.check(Located {
             length: Length {
-                field: "NEAR",
+                field: NEAR_FIELD,
                 value: near,
                 line: near_line,
             },
@@ -910,6 +950,19 @@ mod tests {
         );
     }
 
+    #[test]
+    fn misspelt_keywords_get_the_nearest_one() {
+        let nearest = |token| Keyword::nearest(token).map(Keyword::name);
+        assert_eq!(nearest("BAKC"), Some("BACK"), "a swap counts one");
+        assert_eq!(nearest("spheres"), Some("SPHERE"));
+        assert_eq!(nearest("AMBIANT"), Some("AMBIENT"));
+        assert_eq!(nearest("OUTPUTT"), Some("OUTPUT"));
+        assert_eq!(nearest("RE"), Some("RES"));
+        assert_eq!(nearest("CAMERA"), None);
+        assert_eq!(nearest("X"), None);
+        assert_eq!(nearest("--------------------------a6abca43715a41"), None);
+    }
+
     proptest! {
         #[test]
         fn fast_decimal_is_correctly_rounded(int in 0u64..10_000_000_000, frac in 0usize..12, neg: bool) {
@@ -937,17 +990,16 @@ mod tests {
         let bad = format!("{text}SPHERE s 0 0 -5 1 1 1 0.5 0.5 0.5 1 1 1 0 x\n{text}NEAR -1\n");
         let error = parse(&bad).unwrap_err();
         assert_eq!((error.line, error.column), (lines_before + 1, 43));
-        // A missing directive is reported at the last line, blank lines included.
+        // A missing directive is no line's fault, however long the text.
         let missing = format!("{}\n\n", &text["NEAR 1\n".len()..]);
         let error = parse(&missing).unwrap_err();
+        assert_eq!((error.line, error.column), (0, 0));
         assert_eq!(
-            error.line,
-            lines_before + 1,
-            "its lines, less NEAR, and two blank ones"
-        );
-        assert!(matches!(
             error.kind,
-            SceneErrorKind::MissingDirective { .. }
-        ));
+            SceneErrorKind::MissingDirective {
+                keyword: "NEAR",
+                example: "NEAR 1"
+            }
+        );
     }
 }

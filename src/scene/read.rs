@@ -3,7 +3,7 @@
 //! error near the start ends the read there, and a stream that never ends
 //! a line, or goes on past a size limit, is refused as soon as it does.
 
-use super::lines::CHUNK_BYTES;
+use super::lines::{line_text, CHUNK_BYTES};
 use super::parse::Parser;
 use super::{Scene, SceneError};
 use std::fmt;
@@ -16,30 +16,52 @@ const PIECE_BYTES: usize = 8 * CHUNK_BYTES;
 #[derive(Debug)]
 pub enum ReadError {
     Io(io::Error),
-    /// The text goes on past `limit` bytes.
-    TooLarge {
-        limit: u64,
+    /// The text goes on past its limit.
+    TooLarge(TooLarge),
+    /// The text is not a scene; `source_line` is the text of the error's
+    /// line when it was still in memory (always, for a text of less than
+    /// [`PIECE_BYTES`]).
+    Scene {
+        error: SceneError,
+        source_line: Option<String>,
     },
-    Scene(SceneError),
 }
 
 impl fmt::Display for ReadError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             ReadError::Io(e) => write!(f, "{e}"),
-            ReadError::TooLarge { limit } => {
-                write!(f, "the scene is larger than {limit} bytes")
-            }
-            ReadError::Scene(e) => write!(f, "{e}"),
+            ReadError::TooLarge(e) => write!(f, "{e}"),
+            ReadError::Scene { error, .. } => write!(f, "{error}"),
         }
     }
 }
 
 impl std::error::Error for ReadError {}
 
-impl From<SceneError> for ReadError {
-    fn from(e: SceneError) -> Self {
-        ReadError::Scene(e)
+/// A scene text larger than the limit it is read under: the one wording of
+/// the command line's `--max-scene-bytes` and the service's `--max-body`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TooLarge {
+    /// Its size, when known before it is read (a file's, a `Content-Length`).
+    pub size: Option<u64>,
+    pub limit: u64,
+}
+
+impl fmt::Display for TooLarge {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.size {
+            Some(size) => write!(
+                f,
+                "the scene has {size} bytes, more than the limit of {}",
+                self.limit
+            ),
+            None => write!(
+                f,
+                "the scene has more than the limit of {} bytes",
+                self.limit
+            ),
+        }
     }
 }
 
@@ -61,17 +83,29 @@ pub fn read(mut source: impl Read, max_bytes: u64) -> Result<Scene, ReadError> {
             .map_err(ReadError::Io)? as u64;
         total += got;
         if total > max_bytes {
-            return Err(ReadError::TooLarge { limit: max_bytes });
+            let limit = max_bytes;
+            return Err(ReadError::TooLarge(TooLarge { size: None, limit }));
         }
+        // The piece's lines are numbered from here on.
+        let first = parser.next_line();
+        let in_piece = |error: SceneError| {
+            let source_line = error
+                .line
+                .checked_sub(first)
+                .and_then(|i| line_text(&piece, i + 1));
+            ReadError::Scene { error, source_line }
+        };
         if got < want {
-            parser.feed(&piece)?;
-            return Ok(parser.finish()?);
+            return parser
+                .feed(&piece)
+                .and_then(|()| parser.finish())
+                .map_err(in_piece);
         }
         // Whole lines go to the parser; the start of the next waits for its end.
         let cut = piece.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
-        parser.feed(&piece[..cut])?;
+        parser.feed(&piece[..cut]).map_err(in_piece)?;
+        parser.check_unfinished(&piece[cut..]).map_err(in_piece)?;
         piece.drain(..cut);
-        parser.check_unfinished(&piece)?;
     }
 }
 
@@ -101,7 +135,10 @@ mod tests {
         let bad = format!("{text}\nNEAR 2\n");
         let expected = parse(&bad).unwrap_err();
         match super::read(bad.as_bytes(), u64::MAX) {
-            Err(ReadError::Scene(e)) => assert_eq!(e, expected),
+            Err(ReadError::Scene { error, source_line }) => {
+                assert_eq!(error, expected);
+                assert_eq!(source_line.as_deref(), Some("NEAR 2"));
+            }
             other => panic!("{other:?}"),
         }
     }
@@ -131,17 +168,24 @@ mod tests {
     #[test]
     fn endless_streams_are_refused_on_their_first_line() {
         match read(io::repeat(0), u64::MAX) {
-            Err(ReadError::Scene(e)) => {
+            Err(ReadError::Scene { error: e, .. }) => {
                 assert_eq!(
                     (e.line, e.column, e.kind),
-                    (1, 1, SceneErrorKind::Binary { byte: 0 })
+                    (
+                        1,
+                        1,
+                        SceneErrorKind::Binary {
+                            byte: 0,
+                            format: None
+                        }
+                    )
                 )
             }
             other => panic!("{other:?}"),
         }
         let endless = b"# a comment".chain(io::repeat(b'x'));
         match read(endless, u64::MAX) {
-            Err(ReadError::Scene(e)) => {
+            Err(ReadError::Scene { error: e, .. }) => {
                 assert_eq!((e.line, e.kind), (1, SceneErrorKind::LineTooLong));
                 assert_eq!(e.column, limits::MAX_LINE_BYTES + 1);
             }
@@ -156,7 +200,7 @@ mod tests {
         assert!(read(text.as_bytes(), size).is_ok());
         assert!(matches!(
             read(text.as_bytes(), size - 1),
-            Err(ReadError::TooLarge { limit }) if limit == size - 1
+            Err(ReadError::TooLarge(TooLarge { size: None, limit })) if limit == size - 1
         ));
     }
 }

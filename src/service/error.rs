@@ -165,10 +165,13 @@ impl fmt::Display for ApiErrorKind {
             }
             RequestTimeout { what } => write!(f, "the {what} did not arrive in time"),
             LengthRequired(why) => write!(f, "{why}"),
-            BodyTooLarge { length, max } => write!(
-                f,
-                "the body has {length} bytes; at most {max} are accepted"
-            ),
+            BodyTooLarge { length, max } => {
+                let too_large = crate::scene::TooLarge {
+                    size: Some(*length),
+                    limit: *max,
+                };
+                write!(f, "{too_large}")
+            }
             HeadTooLarge => write!(
                 f,
                 "the request head exceeds {} bytes or {} header lines",

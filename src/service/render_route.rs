@@ -229,15 +229,7 @@ fn encode(rendered: &Rendered, format: Format) -> Result<EncodedRender, ApiError
 }
 
 fn number(key: &str, value: &str, low: u32, high: u32) -> Result<u32, ApiError> {
-    value
-        .parse::<u32>()
-        .ok()
-        .filter(|n| (low..=high).contains(n))
-        .ok_or_else(|| {
-            bad_query(format!(
-                "{key} must be a whole number from {low} to {high}, found {value:?}"
-            ))
-        })
+    crate::bounded::parse(key, value, low..=high).map_err(|e| bad_query(e.to_string()))
 }
 
 fn bad_query(message: String) -> ApiError {
