@@ -148,7 +148,9 @@ fn a_body_without_line_breaks_gets_the_curl_hint() {
         &flattened,
     );
     assert_eq!(reply.status, 400);
-    assert_eq!(reply.text(), format!("{expected}\n{hint}\n"));
+    let line = voxtrace::scene::line_text(&flattened, expected.line);
+    let shown = voxtrace::scene::Diagnostic::new(&expected, "request body", line.as_deref());
+    assert_eq!(reply.text(), format!("{shown}\n{hint}\n"));
     let reply = client.request("POST", "/render", &["Accept: application/json"], &flattened);
     let body = reply.json();
     assert_eq!(body["error"], "scene");

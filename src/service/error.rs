@@ -7,7 +7,7 @@ use super::accept::NotAcceptable;
 use super::http::Response;
 use super::multipart::FormError;
 use crate::limits;
-use crate::scene::SceneError;
+use crate::scene::{Diagnostic, SceneError};
 use std::fmt;
 
 /// Why a request was not answered with what it asked for. Each kind owns its
@@ -15,11 +15,14 @@ use std::fmt;
 /// `voxtrace_errors_total`) and, through `Display`, its message.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum ApiErrorKind {
-    /// The scene does not parse: the CLI's message, with its position.
+    /// The scene does not parse: the CLI's message, with its position, and
+    /// the CLI's view of it (the message, then the line with carets under
+    /// the column) for plain-text answers.
     Scene {
         message: String,
         line: usize,
         column: usize,
+        shown: String,
     },
     /// A query parameter out of range.
     Query(String),
@@ -239,12 +242,19 @@ impl From<ApiErrorKind> for ApiError {
 }
 
 impl ApiError {
-    /// A scene that does not parse: 400 with the same message as the CLI.
-    pub fn scene(error: &SceneError) -> Self {
+    /// A scene that does not parse: 400 with the same message as the CLI,
+    /// and in plain text the CLI's view of it, the line from `text` (the
+    /// request body) shown with carets.
+    pub fn scene(error: &SceneError, text: &[u8]) -> Self {
+        let line = error
+            .is_located()
+            .then(|| crate::scene::line_text(text, error.line))
+            .flatten();
         ApiErrorKind::Scene {
             message: error.to_string(),
             line: error.line,
             column: error.column,
+            shown: Diagnostic::new(error, "request body", line.as_deref()).to_string(),
         }
         .into()
     }
@@ -266,10 +276,14 @@ impl ApiError {
             body.push('}');
             Response::new(kind.status(), "application/json", body)
         } else {
+            let text = match kind {
+                ApiErrorKind::Scene { shown, .. } => shown,
+                _ => &message,
+            };
             Response::new(
                 kind.status(),
                 "text/plain; charset=utf-8",
-                format!("{message}\n"),
+                format!("{text}\n"),
             )
         };
         let response = Response {
@@ -297,6 +311,7 @@ mod tests {
                 message: "m".into(),
                 line: 1,
                 column: 1,
+                shown: "m".into(),
             },
             Query("q".into()),
             BadRequest("b".into()),
@@ -366,14 +381,30 @@ mod tests {
 
     #[test]
     fn scene_errors_carry_their_position_in_json() {
-        let error = crate::scene::parse("NEAR 1\nLEFT abc\n").unwrap_err();
-        let response = ApiError::scene(&error).into_response(true);
+        let text = "NEAR 1\nLEFT abc\n";
+        let error = crate::scene::parse(text).unwrap_err();
+        let response = ApiError::scene(&error, text.as_bytes()).into_response(true);
         assert_eq!(response.status, 400);
         let body: serde_json::Value = serde_json::from_slice(&response.body).unwrap();
         assert_eq!(body["error"], "scene");
         assert_eq!(body["line"], 2);
         assert_eq!(body["column"], 6);
         assert_eq!(body["message"], error.to_string());
+    }
+
+    /// A person reading a plain-text answer sees what the CLI shows: the
+    /// message, then the body's line with carets under the field at fault.
+    #[test]
+    fn plain_scene_errors_show_the_line_with_carets() {
+        let text = "NEAR 1\nLEFT abc\n";
+        let error = crate::scene::parse(text).unwrap_err();
+        let response = ApiError::scene(&error, text.as_bytes()).into_response(false);
+        let body = String::from_utf8(response.body).unwrap();
+        let want = format!(
+            "{}\n --> request body:2:6\n  |\n2 | LEFT abc\n  |      ^^^\n",
+            error.kind
+        );
+        assert_eq!(body, want);
     }
 
     #[test]

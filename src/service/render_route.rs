@@ -193,11 +193,12 @@ pub fn render_request(
 /// stripped is told so (see [`scene_body::hint`]).
 fn parse_scene(pool: &rayon::ThreadPool, text: &[u8]) -> Result<Scene, ApiError> {
     pool.install(|| scene::parse(text)).map_err(|e| {
-        let mut error = ApiError::scene(&e);
-        if let (ApiErrorKind::Scene { message, .. }, Some(hint)) =
+        let mut error = ApiError::scene(&e, text);
+        if let (ApiErrorKind::Scene { message, shown, .. }, Some(hint)) =
             (&mut error.kind, scene_body::hint(text))
         {
             *message = format!("{message}\n{hint}");
+            *shown = format!("{shown}\n{hint}");
         }
         error
     })
