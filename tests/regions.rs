@@ -176,7 +176,7 @@ fn the_cli_writes_the_region_and_refuses_bad_ones_with_exit_code_2() {
         ("10,20,10,70", "is empty"),
         ("0,0,601,10", "outside the 600×600 image"),
     ] {
-        let refused = voxtrace(&["render", scene, "--region", bad, "-o", "/dev/null"]);
+        let refused = voxtrace(&["render", scene, "--region", bad, "-o", "never-written.ppm"]);
         let stderr = String::from_utf8_lossy(&refused.stderr);
         assert_eq!(refused.status.code(), Some(2), "{bad}: {stderr}");
         assert!(stderr.contains(says), "{bad}: {stderr}");

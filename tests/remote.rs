@@ -155,7 +155,7 @@ fn a_service_that_is_not_there_makes_the_cli_give_up_with_exit_code_1() {
             "--tiles",
             "2",
             "-o",
-            "/dev/null",
+            "never-written.png",
         ])
         .output()
         .unwrap();
@@ -175,7 +175,7 @@ fn remote_only_flags_need_remote_and_local_only_flags_refuse_it() {
         vec!["--remote", "http://127.0.0.1:1", "--index", "brute"],
         vec!["--remote", "http://127.0.0.1:1", "--region", "0,0,1,1"],
         vec!["--remote", "http://127.0.0.1:1", "--tiles", "0"],
-        vec!["--remote", "ftp://x", "-o", "/dev/null"],
+        vec!["--remote", "ftp://x", "-o", "never-written.png"],
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_voxtrace"))
             .arg("render")
