@@ -136,7 +136,7 @@ fn open_loop_keeps_its_schedule_and_counts_rejections_and_transport_errors() {
     .unwrap();
     assert_eq!((report.status.get(&400), report.renders), (Some(&6), 0));
     assert!(
-        report.status_samples[&400].contains("line 1"),
+        report.status_samples[&400].contains("--> request body:1:6"),
         "{:?}",
         report.status_samples
     );
@@ -364,9 +364,12 @@ fn only_client_errors_fail_as_the_input_with_a_sample_body() {
         err.contains("no request succeeded: 3 answered 400"),
         "{err}"
     );
-    assert!(err.contains("400: \"line 1, column 6:"), "{err}");
     assert!(
-        stdout(&output).contains("  400      \"line 1, column 6:"),
+        err.contains("400: \"expected a number for the distance to the image plane"),
+        "{err}"
+    );
+    assert!(
+        stdout(&output).contains("  400      \"expected a number for the distance"),
         "{}",
         stdout(&output)
     );
