@@ -32,10 +32,11 @@ enum Shadows<'s> {
 #[derive(Clone, Copy)]
 enum Children<'s, R: Real> {
     /// Traced already, with the secondary rays of the hit's neighbours:
-    /// those of eye ray `eye` of `traced`.
+    /// slot 0 is the reflection ray, slot 1 the refraction ray, each a
+    /// position in `traced` where one was sent.
     Known {
         traced: &'s FirstBounces<R>,
-        eye: usize,
+        slots: [Option<u32>; 2],
     },
     /// To be traced one at a time.
     Trace,
@@ -58,12 +59,8 @@ struct Bounced<R: Real> {
 /// hits' do ([`Tracer::eye_shadows`]).
 #[derive(Default)]
 pub(super) struct FirstBounces<R: Real> {
-    /// Per eye ray, where its reflection (slot 0) and refraction (slot 1)
-    /// rays are, if it sent them.
+    /// Per eye ray, where its reflection and refraction rays are.
     slots: Vec<[Option<u32>; 2]>,
-    /// Per eye ray that hit, its hit's own light ([`Tracer::local_light`]),
-    /// which the rays it sends depend on.
-    local: Vec<(DVec3, Option<DVec3>)>,
     hits: Vec<Option<Hit<R>>>,
     surfaces: Vec<Option<SurfacePoint<R>>>,
     /// Row j (one entry per light) says which of hit j's shadow rays are blocked.
@@ -266,7 +263,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         let ray = Ray::new(V3::<R>::ZERO, dir);
         let children = Children::Known {
             traced: bounces,
-            eye: i,
+            slots: bounces.slots[i],
         };
         match hit {
             Some((hit, surface)) => self.shade_at(
@@ -329,10 +326,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     ) -> DVec3 {
         let m = &self.scene.spheres[hit.sphere as usize].material;
         let dir = ray.dir.normalize();
-        let (local, open) = match children {
-            Children::Known { traced, eye } => traced.local[eye],
-            Children::Trace => self.local_light(surface, m, dir, shadows, counts),
-        };
+        let (local, open) = self.local_light(surface, m, dir, shadows, counts);
         let sent = self.bounce_rays(dir, surface, m, depth, weight, open);
         let bounced = self.bounces(&sent, depth, children, counts);
         match open {
@@ -500,9 +494,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 continue;
             };
             let traced = match children {
-                Children::Known { traced, eye } => {
-                    traced.slots[eye][slot].map(|j| (traced, j as usize))
-                }
+                Children::Known { traced, slots } => slots[slot].map(|j| (traced, j as usize)),
                 Children::Trace => None,
             };
             let color = match traced {
@@ -561,13 +553,11 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         packed: &mut RayCounts,
     ) -> bool {
         out.slots.clear();
-        out.local.clear();
         out.hits.clear();
         out.surfaces.clear();
         let lights = self.lights.len();
         for (i, (&dir, (hit, surface))) in dirs.iter().zip(hits.iter().zip(surfaces)).enumerate() {
             let mut slots = [None, None];
-            let mut local = (DVec3::ZERO, None);
             if let (Some(hit), Some(surface)) = (hit, surface) {
                 if self.stop.now() {
                     return false;
@@ -575,8 +565,8 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 let m = &self.scene.spheres[hit.sphere as usize].material;
                 let dir = dir.normalize();
                 let shadows = Shadows::Known(&blocked[i * lights..(i + 1) * lights]);
-                local = self.local_light(surface, m, dir, shadows, counts);
-                let sent = self.bounce_rays(dir, surface, m, 0, DVec3::ONE, local.1);
+                let (_, open) = self.local_light(surface, m, dir, shadows, counts);
+                let sent = self.bounce_rays(dir, surface, m, 0, DVec3::ONE, open);
                 for (slot, b) in slots.iter_mut().zip(&sent) {
                     let Some(b) = b else {
                         continue;
@@ -590,7 +580,6 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 }
             }
             out.slots.push(slots);
-            out.local.push(local);
         }
         let FirstBounces {
             hits,
