@@ -20,7 +20,7 @@ use crate::scene::{Dialect, Scene};
 use deadline::{Stop, Stopped};
 use glam::DVec3;
 use rayon::prelude::*;
-use shading::{FirstBounces, Tracer};
+use shading::Tracer;
 use std::fmt;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Mutex;
@@ -473,8 +473,6 @@ struct BlockRays<R: Real> {
     surfaces: Vec<Option<SurfacePoint<R>>>,
     /// Row i (one entry per light) says which of hit i's shadow rays are blocked.
     blocked: Vec<bool>,
-    /// The reflection and refraction rays the hits send, and what they found.
-    bounces: FirstBounces<R>,
     samples: Vec<DVec3>,
 }
 
@@ -499,8 +497,7 @@ impl<R: Real> BlockRays<R> {
     }
 
     /// Traces the eye rays tile by tile, then the shadow rays of all their
-    /// hits toward each light, then their reflection and refraction rays
-    /// one by one and those rays' shadow rays together. False if told to stop.
+    /// hits toward each light. False if told to stop.
     fn trace<I: SphereIndex<R> + ?Sized>(
         &mut self,
         tracer: &Tracer<R, I>,
@@ -530,14 +527,6 @@ impl<R: Real> BlockRays<R> {
             &mut self.blocked,
             rays,
             in_packets,
-        ) && tracer.first_bounces(
-            &self.dirs,
-            &self.hits,
-            &self.surfaces,
-            &self.blocked,
-            &mut self.bounces,
-            rays,
-            in_packets,
         )
     }
 
@@ -551,7 +540,7 @@ impl<R: Real> BlockRays<R> {
         let hit = self.hits[i].zip(self.surfaces[i]);
         let lights = tracer.light_count();
         let shadows = &self.blocked[i * lights..(i + 1) * lights];
-        tracer.shade_eye(self.dirs[i], hit, shadows, &self.bounces, i, counts)
+        tracer.shade_eye(self.dirs[i], hit, shadows, counts)
     }
 }
 
@@ -711,23 +700,6 @@ mod tests {
             .stats;
         assert!(stats.rays.shadow > 0);
         assert_eq!(stats.in_packets, stats.rays);
-    }
-
-    /// At depth 1 every secondary ray is sent by an eye hit, so the shadow
-    /// rays of their hits are traced with the block's others, in packets,
-    /// like the eye hits' own; only the secondary rays go one at a time.
-    #[test]
-    fn the_shadow_rays_of_first_bounces_go_in_packets() {
-        let scene = crate::scene::parse(include_bytes!("../../scenes/thousands.txt")).unwrap();
-        let options = RenderOptions {
-            depth: Some(1),
-            ..RenderOptions::default()
-        };
-        let stats = render_scene(&scene, &options, &|_| {}).unwrap().stats;
-        assert!(stats.rays.reflection > 0 && stats.rays.shadow > 0);
-        let secondary = stats.rays.reflection + stats.rays.refraction;
-        assert_eq!(stats.in_packets.shadow, stats.rays.shadow);
-        assert_eq!(stats.in_packets.total(), stats.rays.total() - secondary);
     }
 
     #[test]

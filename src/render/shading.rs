@@ -28,45 +28,6 @@ enum Shadows<'s> {
     Trace,
 }
 
-/// What shading a hit knows of its secondary rays.
-#[derive(Clone, Copy)]
-enum Children<'s, R: Real> {
-    /// Traced already, with the secondary rays of the hit's neighbours:
-    /// slot 0 is the reflection ray, slot 1 the refraction ray, each a
-    /// position in `traced` where one was sent.
-    Known {
-        traced: &'s FirstBounces<R>,
-        slots: [Option<u32>; 2],
-    },
-    /// To be traced one at a time.
-    Trace,
-}
-
-/// A secondary ray as shading adds it: the ray, where its search starts,
-/// the weight of the pixel it carries, and the gain its colour is added with.
-#[derive(Clone, Copy)]
-struct Bounced<R: Real> {
-    bounce: Bounce,
-    ray: Ray<R>,
-    t_min: R,
-    weight: DVec3,
-    gain: DVec3,
-}
-
-/// The reflection and refraction rays sent by a block's eye hits, traced
-/// ray by ray before any of them is shaded, so that the shadow rays of
-/// their hits toward each light can go to the index together, as the eye
-/// hits' do ([`Tracer::eye_shadows`]).
-#[derive(Default)]
-pub(super) struct FirstBounces<R: Real> {
-    /// Per eye ray, where its reflection and refraction rays are.
-    slots: Vec<[Option<u32>; 2]>,
-    hits: Vec<Option<Hit<R>>>,
-    surfaces: Vec<Option<SurfacePoint<R>>>,
-    /// Row j (one entry per light) says which of hit j's shadow rays are blocked.
-    blocked: Vec<bool>,
-}
-
 pub(super) struct Tracer<'a, R: Real, I: ?Sized> {
     scene: &'a Scene,
     shapes: &'a [Ellipsoid<R>],
@@ -248,23 +209,15 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     /// The colour seen along the eye ray with direction `dir`, whose nearest
     /// hit beyond the near plane is `hit`, at `surface`, with its shadow
     /// rays' answers `shadows` (its row of [`Self::eye_shadows`]).
-    /// Its secondary rays are eye ray `i`'s of `bounces`.
-    #[allow(clippy::too_many_arguments)]
     pub fn shade_eye(
         &self,
         dir: V3<R>,
         hit: Option<(Hit<R>, SurfacePoint<R>)>,
         shadows: &[bool],
-        bounces: &FirstBounces<R>,
-        i: usize,
         counts: &mut RayCounts,
     ) -> DVec3 {
         counts.eye += 1;
         let ray = Ray::new(V3::<R>::ZERO, dir);
-        let children = Children::Known {
-            traced: bounces,
-            slots: bounces.slots[i],
-        };
         match hit {
             Some((hit, surface)) => self.shade_at(
                 &ray,
@@ -273,7 +226,6 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                 0,
                 DVec3::ONE,
                 Shadows::Known(shadows),
-                children,
                 counts,
             ),
             None => match self.scene.dialect {
@@ -299,8 +251,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         match self.index.closest_hit(ray, t_min, R::infinity()) {
             Some(hit) => {
                 let surface = self.surface(ray, hit);
-                let (shadows, children) = (Shadows::Trace, Children::Trace);
-                self.shade_at(ray, hit, &surface, depth, weight, shadows, children, counts)
+                self.shade_at(ray, hit, &surface, depth, weight, Shadows::Trace, counts)
             }
             None => self.secondary_miss,
         }
@@ -321,36 +272,20 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         depth: u32,
         weight: DVec3,
         shadows: Shadows,
-        children: Children<R>,
         counts: &mut RayCounts,
     ) -> DVec3 {
         let m = &self.scene.spheres[hit.sphere as usize].material;
         let dir = ray.dir.normalize();
-        let (local, open) = self.local_light(surface, m, dir, shadows, counts);
-        let sent = self.bounce_rays(dir, surface, m, depth, weight, open);
-        let bounced = self.bounces(&sent, depth, children, counts);
-        match open {
-            None => local + bounced,
-            Some(open) => local + open * bounced,
-        }
-    }
-
-    /// The hit's own light, and in the browser model the share `1 − local`
-    /// left open to what its secondary rays bring.
-    fn local_light(
-        &self,
-        surface: &SurfacePoint<R>,
-        m: &Material,
-        dir: V3<R>,
-        shadows: Shadows,
-        counts: &mut RayCounts,
-    ) -> (DVec3, Option<DVec3>) {
         let direct = self.direct_light(surface, m, -dir, shadows, counts);
         match self.scene.dialect {
-            Dialect::Classic => (m.ambient * self.scene.ambient * m.color + direct, None),
+            Dialect::Classic => {
+                let local = m.ambient * self.scene.ambient * m.color + direct;
+                local + self.bounces(dir, surface, m, depth, weight, DVec3::splat, counts)
+            }
             Dialect::Browser => {
                 let local = (m.ambient * m.color + direct).min(DVec3::ONE);
-                (local, Some(DVec3::ONE - local))
+                let open = DVec3::ONE - local;
+                local + open * self.bounces(dir, surface, m, depth, weight, |k| k * open, counts)
             }
         }
     }
@@ -424,40 +359,44 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         base.max(R::zero())
     }
 
-    /// The reflection and refraction rays (slots 0 and 1) of a ray arriving
-    /// along the unit direction `dir` at `depth`, each with the gain its
-    /// colour is added with: a plain coefficient in the classic model
-    /// (`open` None), blended by `open` in the browser one. A slot is None
-    /// where its coefficient is zero or its weight too small to trace.
-    fn bounce_rays(
+    /// The reflected and refracted contributions of a ray arriving along the
+    /// unit direction `dir`, each weighted by `factor(k)` (a plain
+    /// coefficient in the classic model, blended in the browser one).
+    #[allow(clippy::too_many_arguments)]
+    fn bounces(
         &self,
         dir: V3<R>,
         surface: &SurfacePoint<R>,
         m: &Material,
         depth: u32,
         weight: DVec3,
-        open: Option<DVec3>,
-    ) -> [Option<Bounced<R>>; 2] {
+        factor: impl Fn(f64) -> DVec3,
+        counts: &mut RayCounts,
+    ) -> DVec3 {
+        let mut sum = DVec3::ZERO;
         if depth >= self.max_depth {
-            return [None, None];
+            return sum;
         }
         let n = surface.normal;
-        [
+        for (k, bounce) in [
             (m.reflect, Bounce::Reflection),
             (m.refract, Bounce::Refraction),
-        ]
-        .map(|(k, bounce)| {
+        ] {
             if k == 0.0 {
-                return None;
+                continue;
             }
-            let gain = open.map_or(DVec3::splat(k), |open| k * open);
+            let gain = factor(k);
             let next_weight = weight * gain;
             if (self.weight_norm)(next_weight) < self.min_weight || next_weight == DVec3::ZERO {
-                return None;
+                continue;
             }
             let (out, t_min) = match bounce {
-                Bounce::Reflection => (reflect::<R>(dir, n), self.rules.reflection_t_min()),
+                Bounce::Reflection => {
+                    counts.reflection += 1;
+                    (reflect::<R>(dir, n), self.rules.reflection_t_min())
+                }
                 Bounce::Refraction => {
+                    counts.refraction += 1;
                     let ratio = if surface.inside {
                         R::one() / R::from_f64(m.ior)
                     } else {
@@ -469,133 +408,10 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                     (out, R::zero())
                 }
             };
-            Some(Bounced {
-                bounce,
-                ray: Ray::new(spawn_origin(surface, out), out),
-                t_min,
-                weight: next_weight,
-                gain,
-            })
-        })
-    }
-
-    /// The sum of what the rays `sent` bring back, each times its gain:
-    /// found by [`Self::first_bounces`] already, or traced now.
-    fn bounces(
-        &self,
-        sent: &[Option<Bounced<R>>; 2],
-        depth: u32,
-        children: Children<R>,
-        counts: &mut RayCounts,
-    ) -> DVec3 {
-        let mut sum = DVec3::ZERO;
-        for (slot, b) in sent.iter().enumerate() {
-            let Some(b) = b else {
-                continue;
-            };
-            let traced = match children {
-                Children::Known { traced, slots } => slots[slot].map(|j| (traced, j as usize)),
-                Children::Trace => None,
-            };
-            let color = match traced {
-                Some((traced, j)) => self.shade_traced(traced, j, b, depth + 1, counts),
-                None => {
-                    count_bounce(b.bounce, counts);
-                    self.trace_secondary(&b.ray, b.t_min, depth + 1, b.weight, counts)
-                }
-            };
-            sum += b.gain * color;
+            let next = Ray::new(spawn_origin(surface, out), out);
+            sum += gain * self.trace_secondary(&next, t_min, depth + 1, next_weight, counts);
         }
         sum
-    }
-
-    /// The colour secondary ray `j` of `traced` (the ray `b`) brings back.
-    fn shade_traced(
-        &self,
-        traced: &FirstBounces<R>,
-        j: usize,
-        b: &Bounced<R>,
-        depth: u32,
-        counts: &mut RayCounts,
-    ) -> DVec3 {
-        let (Some(hit), Some(surface)) = (traced.hits[j], traced.surfaces[j]) else {
-            return self.secondary_miss;
-        };
-        let lights = self.lights.len();
-        let shadows = Shadows::Known(&traced.blocked[j * lights..(j + 1) * lights]);
-        self.shade_at(
-            &b.ray,
-            hit,
-            &surface,
-            depth,
-            b.weight,
-            shadows,
-            Children::Trace,
-            counts,
-        )
-    }
-
-    /// The secondary rays of the eye rays with directions `dirs`, whose
-    /// hits are `hits` at `surfaces` with their shadow rays' answers
-    /// `blocked` (as [`Self::eye_shadows`] gives them), traced one at a
-    /// time into `out`, and then the shadow rays of their hits toward each
-    /// light together. `counts` and `packed` as for [`Self::eye_shadows`].
-    /// False if told to stop.
-    #[allow(clippy::too_many_arguments)]
-    pub fn first_bounces(
-        &self,
-        dirs: &[V3<R>],
-        hits: &[Option<Hit<R>>],
-        surfaces: &[Option<SurfacePoint<R>>],
-        blocked: &[bool],
-        out: &mut FirstBounces<R>,
-        counts: &mut RayCounts,
-        packed: &mut RayCounts,
-    ) -> bool {
-        out.slots.clear();
-        out.hits.clear();
-        out.surfaces.clear();
-        let lights = self.lights.len();
-        for (i, (&dir, (hit, surface))) in dirs.iter().zip(hits.iter().zip(surfaces)).enumerate() {
-            let mut slots = [None, None];
-            if let (Some(hit), Some(surface)) = (hit, surface) {
-                if self.stop.now() {
-                    return false;
-                }
-                let m = &self.scene.spheres[hit.sphere as usize].material;
-                let dir = dir.normalize();
-                let shadows = Shadows::Known(&blocked[i * lights..(i + 1) * lights]);
-                let (_, open) = self.local_light(surface, m, dir, shadows, counts);
-                let sent = self.bounce_rays(dir, surface, m, 0, DVec3::ONE, open);
-                for (slot, b) in slots.iter_mut().zip(&sent) {
-                    let Some(b) = b else {
-                        continue;
-                    };
-                    count_bounce(b.bounce, counts);
-                    *slot = Some(out.hits.len() as u32);
-                    let found = self.index.closest_hit(&b.ray, b.t_min, R::infinity());
-                    out.hits.push(found);
-                    out.surfaces
-                        .push(found.map(|hit| self.surface(&b.ray, hit)));
-                }
-            }
-            out.slots.push(slots);
-        }
-        let FirstBounces {
-            hits,
-            surfaces,
-            blocked,
-            ..
-        } = out;
-        self.eye_shadows(hits, surfaces, blocked, counts, packed)
-    }
-}
-
-/// Counts a secondary ray of kind `bounce` in `counts`.
-fn count_bounce(bounce: Bounce, counts: &mut RayCounts) {
-    match bounce {
-        Bounce::Reflection => counts.reflection += 1,
-        Bounce::Refraction => counts.refraction += 1,
     }
 }
 
