@@ -245,20 +245,24 @@ pub fn eye_hit_map_from<R: Real>(scene: &Scene, kind: IndexKind, eye: DVec3) -> 
         .collect()
 }
 
+/// Refuses settings out of their bounds with the words the command line and
+/// the service use for them ([`crate::bounded::OutOfRange`]).
 fn check_options(options: &RenderOptions) -> Result<(), RenderError> {
-    if options.spp == 0 || options.spp > limits::MAX_SPP {
-        return Err(RenderError::BadOption(format!(
-            "spp must be between 1 and {}",
-            limits::MAX_SPP
-        )));
+    let within = |name: &str, value: u32, range: std::ops::RangeInclusive<u32>| {
+        if range.contains(&value) {
+            return Ok(());
+        }
+        let found = value.to_string();
+        let name = name.to_owned();
+        Err(RenderError::BadOption(
+            crate::bounded::OutOfRange { name, range, found }.to_string(),
+        ))
+    };
+    within("spp", options.spp, 1..=limits::MAX_SPP)?;
+    match options.depth {
+        Some(depth) => within("depth", depth, 0..=limits::MAX_DEPTH),
+        None => Ok(()),
     }
-    if options.depth.is_some_and(|d| d > limits::MAX_DEPTH) {
-        return Err(RenderError::BadOption(format!(
-            "depth must be at most {}",
-            limits::MAX_DEPTH
-        )));
-    }
-    Ok(())
 }
 
 /// Traces every pixel of `scene` against `index`, rows in parallel. The
@@ -700,6 +704,38 @@ mod tests {
             .stats;
         assert!(stats.rays.shadow > 0);
         assert_eq!(stats.in_packets, stats.rays);
+    }
+
+    #[test]
+    fn settings_out_of_bounds_are_refused_in_the_cli_s_words() {
+        let scene = crate::scene::parse(include_bytes!("../../scenes/testSample.txt")).unwrap();
+        let refused = |options: RenderOptions| match render_scene(&scene, &options, &|_| {}) {
+            Err(RenderError::BadOption(why)) => why,
+            other => panic!("not refused: {:?}", other.map(|r| r.stats)),
+        };
+        let spp = RenderOptions {
+            spp: 0,
+            ..RenderOptions::default()
+        };
+        assert_eq!(
+            refused(spp),
+            format!(
+                "spp must be a whole number from 1 to {}, found \"0\"",
+                limits::MAX_SPP
+            )
+        );
+        let depth = RenderOptions {
+            depth: Some(limits::MAX_DEPTH + 1),
+            ..RenderOptions::default()
+        };
+        assert_eq!(
+            refused(depth),
+            format!(
+                "depth must be a whole number from 0 to {}, found \"{}\"",
+                limits::MAX_DEPTH,
+                limits::MAX_DEPTH + 1
+            )
+        );
     }
 
     #[test]
