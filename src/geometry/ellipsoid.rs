@@ -106,6 +106,16 @@ struct LocalRay<R: Real> {
     l: V3<R>,
 }
 
+impl<R: Real> LocalRay<R> {
+    /// The ray `f + t·e` in unit-sphere space, with `a = e·e` and `b = f·e`.
+    #[inline(always)]
+    fn new(f: V3<R>, e: V3<R>, a: R, b: R) -> Self {
+        let l = f - e * (b / a);
+        let l = l - e * (l.dot(e) / a);
+        LocalRay { f, e, a, b, l }
+    }
+}
+
 impl<R: Real> Ellipsoid<R> {
     pub fn new(center: V3<R>, scale: V3<R>) -> Self {
         Ellipsoid {
@@ -316,7 +326,7 @@ fn to_wide<R: Real>(ray: &Ray<R>) -> Ray<f64> {
 /// filter that skips that test's three divisions on most candidates, and
 /// never changes its answer.
 ///
-/// With `a = e·e`, `b = f·e` and `F = f·f`, the line's squared distance
+/// With `a = e·e`, `b = f·e` and `F = f·f` (`f_squared`), the line's squared distance
 /// from the centre is `D = F − b²/a`, so `a·F − b² = a·D`. That difference
 /// cancels when the line passes near the centre, but its error is bounded:
 /// each dot product is off by γ(3) of `a`, `F` or `√(a·F)`, so `a·F` and
@@ -328,10 +338,8 @@ fn to_wide<R: Real>(ray: &Ray<R>) -> Ray<f64> {
 /// so it sees `|l| > 1` and a negative discriminant. Overflow to ∞ proves
 /// nothing, so an infinite difference is not taken as a miss.
 #[inline(always)]
-fn line_clearly_misses<R: Real>(f: V3<R>, e: V3<R>, f_squared: R) -> bool {
+fn line_clearly_misses<R: Real>(a: R, b: R, f_squared: R) -> bool {
     let margin = R::from_f64(1.25);
-    let a = e.dot(e);
-    let b = f.dot(e);
     let distance = a * f_squared - b * b;
     let bound = a * (margin + f_squared * (R::from_f64(32.0) * R::UNIT_ROUNDOFF));
     distance > bound && distance < R::infinity()
@@ -362,11 +370,7 @@ impl<R: Real> UnitSphereFrame<R> {
     fn local(&self, ray: &Ray<R>) -> LocalRay<R> {
         let f = (ray.origin - self.center) * self.inv_scale;
         let e = ray.dir * self.inv_scale;
-        let a = e.dot(e);
-        let b = f.dot(e);
-        let l = f - e * (b / a);
-        let l = l - e * (l.dot(e) / a);
-        LocalRay { f, e, a, b, l }
+        LocalRay::new(f, e, e.dot(e), f.dot(e))
     }
 
     /// [`Ellipsoid::intersect`] (which calls this).
@@ -377,10 +381,12 @@ impl<R: Real> UnitSphereFrame<R> {
         if f_squared > R::NEAR_FRAME {
             return self.intersect_wide(ray, t_min, t_max);
         }
-        if line_clearly_misses(f, ray.dir * self.inv_scale, f_squared) {
+        let e = ray.dir * self.inv_scale;
+        let (a, b) = (e.dot(e), f.dot(e));
+        if line_clearly_misses(a, b, f_squared) {
             return None;
         }
-        let (near, far, _) = Ellipsoid::roots(&self.local(ray))?;
+        let (near, far, _) = Ellipsoid::roots(&LocalRay::new(f, e, a, b))?;
         first_in(near, far, t_min, t_max)
     }
 
@@ -502,7 +508,8 @@ mod tests {
         if f_squared > R::NEAR_FRAME {
             return None;
         }
-        let filtered = line_clearly_misses(f, ray.dir * frame.inv_scale, f_squared);
+        let e = ray.dir * frame.inv_scale;
+        let filtered = line_clearly_misses(e.dot(e), f.dot(e), f_squared);
         let robust_misses = Ellipsoid::roots(&frame.local(ray)).is_none();
         Some((filtered, robust_misses))
     }
