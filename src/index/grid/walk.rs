@@ -2,8 +2,8 @@
 //!
 //! The walk keeps the integer cell and, per axis, the t at which the ray
 //! crosses the next cell boundary. That t is always recomputed from the
-//! integer index, `(origin + i·h − o) / d`, never accumulated, so it cannot
-//! drift over a million cells. An axis the ray runs parallel to (d = ±0)
+//! integer index, `(origin − o)/d + i·(h/d)`, never accumulated, so it
+//! cannot drift over a million cells. An axis the ray runs parallel to (d = ±0)
 //! never steps: its next crossing is +∞. Empty space is crossed a cube at
 //! a time: the empty groups of regions around the walk's one (as far as the
 //! level's proximity cloud says), an empty region (4×4×4 blocks), an empty
@@ -49,25 +49,43 @@ struct Axes {
     /// 1 where the ray travels up the axis, else 0: the next plane it
     /// crosses from cell `c` is plane `c + up`.
     up: [i64; 3],
-    /// 1/d, or 0 where d = ±0.
-    inv: [f64; 3],
-    /// +∞ where d = ±0 (the ray never crosses that axis's planes), else 0:
-    /// added to a crossing's t, it spares a branch on the direction.
-    never: [f64; 3],
+    /// The t of the level's plane 0, `(origin − o)/d`, or +∞ where d = ±0
+    /// (the ray never crosses that axis's planes): a crossing's t is
+    /// `plane0 + i·per_plane`, with no branch on the direction.
+    plane0: [f64; 3],
+    /// `cell / d` (exact: the cell is a power of two), or 0 where d = ±0.
+    per_plane: [f64; 3],
     /// The cell's place in its block (0 or 3) just after a step along the
     /// axis has entered a new block.
     block_entry: [i64; 3],
 }
 
 impl Axes {
-    fn new(ray: &Ray64) -> Self {
+    fn new(ray: &Ray64, level: &Level) -> Self {
+        let inv = [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] });
         Axes {
             step: ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64),
             up: ray.d.map(|d| (d > 0.0) as i64),
-            inv: [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] }),
-            never: ray.d.map(|d| if d == 0.0 { f64::INFINITY } else { 0.0 }),
+            plane0: [0, 1, 2].map(|a| {
+                if ray.d[a] == 0.0 {
+                    f64::INFINITY
+                } else {
+                    (level.origin[a] - ray.o[a]) * inv[a]
+                }
+            }),
+            per_plane: inv.map(|inv| level.cell * inv),
             block_entry: ray.d.map(|d| if d > 0.0 { 0 } else { BLOCK_SIDE - 1 }),
         }
+    }
+
+    /// The t at which the ray leaves cell `c` across a plane of `axis`
+    /// (+∞ if it never does). The plane between cells `i − 1` and `i` lies
+    /// at `origin + i·cell`, crossed at `(origin − o)/d + i·(cell/d)`: two
+    /// roundings on the level's own scale, whatever the cell's index.
+    #[inline(always)]
+    fn crossing(&self, axis: usize, c: i64) -> f64 {
+        let i = c + self.up[axis];
+        self.plane0[axis] + i as f64 * self.per_plane[axis]
     }
 }
 
@@ -149,15 +167,6 @@ fn first_axis(t: &[f64; 3]) -> usize {
 }
 
 impl Level {
-    /// The t at which the ray leaves cell `c` across a plane of `axis`
-    /// (+∞ if it never does): the plane between cells `i − 1` and `i` lies
-    /// at `origin + i·cell`.
-    #[inline(always)]
-    fn next_crossing(&self, ray: &Ray64, axes: &Axes, axis: usize, c: i64) -> f64 {
-        let i = c + axes.up[axis];
-        (self.origin[axis] + i as f64 * self.cell - ray.o[axis]) * axes.inv[axis] + axes.never[axis]
-    }
-
     /// The part of [t_lo, t_hi] the ray spends inside this level's box.
     pub(super) fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (t_lo, t_hi);
@@ -198,15 +207,15 @@ impl Level {
         let Some((t0, mut limit)) = self.clip(ray, t_lo, t_hi) else {
             return;
         };
-        let axes = Axes::new(ray);
+        let axes = Axes::new(ray, self);
         let mut c = [0; 3];
         let mut t_next = [0.0; 3];
         for a in 0..3 {
             c[a] = self.cell_at(ray, t0, a, 0, self.dims[a] - 1);
-            t_next[a] = self.next_crossing(ray, &axes, a, c[a]);
+            t_next[a] = axes.crossing(a, c[a]);
         }
         if empty_space == EmptySpace::ProbeEveryCell {
-            return self.walk_probing(ray, &axes, c, t_next, limit, visit);
+            return self.walk_probing(&axes, c, t_next, limit, visit);
         }
         let mut region = Cached::<u64>::new();
         // The occupied block the walk is in; None until it is looked up.
@@ -231,7 +240,7 @@ impl Level {
                 let wanted = visit(self.candidates(cells.cell_index(cell_bit(c))));
                 limit = limit.min(wanted);
             }
-            let Some(a) = self.step(ray, &axes, &mut c, &mut t_next, limit) else {
+            let Some(a) = self.step(&axes, &mut c, &mut t_next, limit) else {
                 return;
             };
             if c[a] & (BLOCK_SIDE - 1) == axes.block_entry[a] {
@@ -278,7 +287,6 @@ impl Level {
     /// [`Self::walk`] one cell at a time, probing the block table in each.
     fn walk_probing(
         &self,
-        ray: &Ray64,
         axes: &Axes,
         mut c: [i64; 3],
         mut t_next: [f64; 3],
@@ -291,7 +299,7 @@ impl Level {
                     limit = limit.min(visit(self.candidates(b.cell_index(cell_bit(c)))));
                 }
             }
-            if self.step(ray, axes, &mut c, &mut t_next, limit).is_none() {
+            if self.step(axes, &mut c, &mut t_next, limit).is_none() {
                 return;
             }
         }
@@ -303,7 +311,6 @@ impl Level {
     #[inline(always)]
     fn step(
         &self,
-        ray: &Ray64,
         axes: &Axes,
         c: &mut [i64; 3],
         t_next: &mut [f64; 3],
@@ -317,7 +324,7 @@ impl Level {
         if c[a] < 0 || c[a] >= self.dims[a] {
             return None;
         }
-        t_next[a] = self.next_crossing(ray, axes, a, c[a]);
+        t_next[a] = axes.crossing(a, c[a]);
         Some(a)
     }
 
@@ -341,7 +348,7 @@ impl Level {
             let up = axes.up[a];
             (((c[a] >> shift) + up * (2 * r + 1) - r) << shift) - up
         });
-        let exits = [0, 1, 2].map(|a| self.next_crossing(ray, axes, a, last[a]));
+        let exits = [0, 1, 2].map(|a| axes.crossing(a, last[a]));
         let a = first_axis(&exits);
         let t_exit = exits[a];
         if t_exit > limit || t_exit == f64::INFINITY {
@@ -360,7 +367,7 @@ impl Level {
             if c[k] < 0 || c[k] >= self.dims[k] {
                 return false;
             }
-            t_next[k] = self.next_crossing(ray, axes, k, c[k]);
+            t_next[k] = axes.crossing(k, c[k]);
         }
         true
     }
