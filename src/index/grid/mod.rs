@@ -324,9 +324,10 @@ impl<R: Real> VoxelHashGrid<R> {
             return true;
         }
         let mut mailbox = Mailbox::new();
-        self.levels
-            .iter()
-            .any(|level| self.any_hit_in(level, &wide, ray, t_max, &mut mailbox, budget))
+        self.levels.iter().any(|level| {
+            self.blocker_in(level, &wide, ray, t_max, &mut mailbox, budget)
+                .is_some()
+        })
     }
 
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
@@ -338,9 +339,9 @@ impl<R: Real> VoxelHashGrid<R> {
             .is_some()
     }
 
-    /// Whether a sphere of `level` meets the ray (`wide` in f64) with t in
-    /// (0, t_max), spending one of `budget` per test.
-    fn any_hit_in(
+    /// A sphere of `level` (its position in `spheres`) that meets the ray
+    /// (`wide` in f64) with t in (0, t_max), spending one of `budget` per test.
+    fn blocker_in(
         &self,
         level: &Level,
         wide: &Ray64,
@@ -348,28 +349,28 @@ impl<R: Real> VoxelHashGrid<R> {
         t_max: R,
         mailbox: &mut Mailbox,
         budget: &mut impl Tests,
-    ) -> bool {
+    ) -> Option<u32> {
         let slack = level.slack / wide.length;
-        let mut found = false;
+        let mut blocker = None;
         level.walk(
             wide,
             -slack,
             t_max.to_f64() + slack,
             self.empty_space,
             |ids| {
-                found = ids.iter().any(|&i| {
+                blocker = ids.iter().copied().find(|&i| {
                     mailbox.first_visit(i) && {
                         budget.spend(1);
                         self.blocks(i, ray, t_max)
                     }
                 });
-                if found {
+                if blocker.is_some() {
                     f64::NEG_INFINITY
                 } else {
                     f64::INFINITY
                 }
             },
         );
-        found
+        blocker
     }
 }
