@@ -197,6 +197,7 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
     let regions = regions(&blocks);
     Level {
         cell,
+        per_cell: reciprocal(cell),
         origin: lo,
         far: (lo + dims.as_dvec3() * cell).to_array(),
         dims: dims.to_array(),

@@ -43,8 +43,10 @@ pub enum EmptySpace {
 
 /// One size class: a sparse uniform grid over its spheres' bounding box.
 pub struct Level {
-    /// Cell side length.
+    /// Cell side length, a power of two.
     cell: f64,
+    /// `1 / cell`, exact: multiplying by it divides by the cell.
+    per_cell: f64,
     /// The low corner of cell (0, 0, 0).
     origin: DVec3,
     /// Cells per axis.

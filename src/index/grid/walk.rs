@@ -187,7 +187,7 @@ impl Level {
     #[inline(always)]
     pub(super) fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
         let p = ray.o[axis] + t * ray.d[axis];
-        floor_to_int((p - self.origin[axis]) / self.cell).clamp(lo, hi)
+        floor_to_int((p - self.origin[axis]) * self.per_cell).clamp(lo, hi)
     }
 
     /// Visits, nearest first, the occupied cells the ray crosses within
