@@ -201,7 +201,7 @@ fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {
     );
     let p = &s.in_packets;
     eprintln!(
-        "packets eye {}  shadow {}  (rays traced together: a tile's eye rays, its shadow rays toward one light)",
+        "packets eye {}  shadow {}  (rays handed to the index together: a tile's eye rays, its shadow rays toward one light, walked together where they pay)",
         p.eye, p.shadow
     );
     eprintln!("speed   {:10.2} Mrays/s", s.mrays_per_second());

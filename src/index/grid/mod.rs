@@ -318,18 +318,21 @@ impl<R: Real> VoxelHashGrid<R> {
 
     /// [`SphereIndex::any_hit`], spending one of `budget` per test.
     pub(super) fn any_hit_spending(&self, ray: &Ray<R>, t_max: R, budget: &mut impl Tests) -> bool {
-        let Some(wide) = Ray64::new(ray) else {
-            return false;
-        };
+        self.blocker(ray, t_max, budget).is_some()
+    }
+
+    /// A sphere (its position in `spheres`) that meets the ray with t in
+    /// (0, t_max), spending one of `budget` per test.
+    pub(super) fn blocker(&self, ray: &Ray<R>, t_max: R, budget: &mut impl Tests) -> Option<u32> {
+        let wide = Ray64::new(ray)?;
         budget.spend(self.short.len() as u64);
-        if self.short.iter().any(|&i| self.blocks(i, ray, t_max)) {
-            return true;
+        if let Some(&i) = self.short.iter().find(|&&i| self.blocks(i, ray, t_max)) {
+            return Some(i);
         }
         let mut mailbox = Mailbox::new();
-        self.levels.iter().any(|level| {
-            self.blocker_in(level, &wide, ray, t_max, &mut mailbox, budget)
-                .is_some()
-        })
+        self.levels
+            .iter()
+            .find_map(|level| self.blocker_in(level, &wide, ray, t_max, &mut mailbox, budget))
     }
 
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).

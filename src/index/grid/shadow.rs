@@ -151,6 +151,10 @@ fn aim_shadow_packet<R: Real>(
 /// of a cell per ray is best or near it on every one.
 const WIDEST_CELLS_PER_RAY: f64 = 0.25;
 
+/// The rest of a packet goes together when more than 1/`LIT_DIVISOR` of
+/// its sample reached the light, else one ray at a time.
+const LIT_DIVISOR: usize = 4;
+
 /// The rays of `groups` still unblocked, one bit per ray.
 fn open_rays<R: Real>(rays: &ShadowGroups<R>) -> u64 {
     rays.groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
@@ -175,22 +179,40 @@ impl<R: Real> VoxelHashGrid<R> {
         };
         let mut packet = Packet::new();
         for (origins, out) in origins.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
-            // A short last packet repeats its last ray in the spare lanes.
-            let padded: [V3<R>; RAYS] = std::array::from_fn(|i| origins[i.min(origins.len() - 1)]);
+            // The first group's rays, one at a time, are the sample.
+            let sampled = origins.len().min(LANES);
+            for (&o, blocked) in origins.iter().zip(out.iter_mut()).take(sampled) {
+                *blocked = self.shadow_ray_alone(&Ray::new(o, light - o), &mut rays);
+            }
+            if rays.budget.spent() {
+                return Answered::GaveUp;
+            }
+            let lit = out[..sampled].iter().filter(|&&blocked| !blocked).count();
+            let (origins, out) = (&origins[sampled..], &mut out[sampled..]);
+            if origins.is_empty() {
+                continue;
+            }
+            // A short packet repeats its last ray in the spare lanes.
+            let padded: [V3<R>; RAYS] =
+                std::array::from_fn(|i| origins[i.saturating_sub(LANES).min(origins.len() - 1)]);
             let dirs = padded.map(|o| light - o);
-            if aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs) {
+            if lit * LIT_DIVISOR > sampled
+                && aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs)
+            {
                 for (g, lanes) in rays.groups.iter_mut().enumerate() {
                     let lanes_of = g * LANES..(g + 1) * LANES;
                     lanes.aim(&padded[lanes_of.clone()], &dirs[lanes_of]);
                 }
+                // The sample's lanes are answered already.
+                rays.groups[0].blocked = ALL_LANES;
                 self.trace_shadow_packet(&packet, &mut rays);
                 for (i, blocked) in out.iter_mut().enumerate() {
-                    *blocked = rays.groups[i / LANES].blocked >> (i % LANES) & 1 == 1;
+                    let lane = LANES + i;
+                    *blocked = rays.groups[lane / LANES].blocked >> (lane % LANES) & 1 == 1;
                 }
             } else {
                 for (&o, blocked) in origins.iter().zip(out.iter_mut()) {
-                    let ray = Ray::new(o, light - o);
-                    *blocked = self.any_hit_spending(&ray, R::one(), &mut rays.budget);
+                    *blocked = self.shadow_ray_alone(&Ray::new(o, light - o), &mut rays);
                     if rays.budget.spent() {
                         return Answered::GaveUp;
                     }
@@ -299,6 +321,23 @@ impl<R: Real> VoxelHashGrid<R> {
             rays.last_blocker = Some(i);
         }
         blocks
+    }
+
+    /// Whether a sphere blocks `ray` (reaching the light at t = 1), tried
+    /// first against the call's last blocker.
+    fn shadow_ray_alone(&self, ray: &Ray<R>, rays: &mut ShadowGroups<R>) -> bool {
+        let budget = &mut rays.budget;
+        let blocker = rays
+            .last_blocker
+            .filter(|&b| {
+                budget.spend(1);
+                self.blocks(b, ray, R::one())
+            })
+            .or_else(|| self.blocker(ray, R::one(), budget));
+        if blocker.is_some() {
+            rays.last_blocker = blocker;
+        }
+        blocker.is_some()
     }
 
     /// The open lanes of `lanes` through `level`, one ray at a time (each
