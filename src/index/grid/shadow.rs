@@ -12,6 +12,13 @@
 //! blocker. The sphere that blocked the call's latest ray is tried on the
 //! next packet (and ray) before any walk.
 //!
+//! Not every packet pays: a ray from deep in a dense cloud is blocked a
+//! few cells from its origin, and walked alone from there it costs less
+//! than its share of a packet walked from the light, which fans out over
+//! hits at every depth. So each packet's first group goes one ray at a time
+//! as a sample, and the rest goes together only when enough of the sample
+//! reached the light.
+//!
 //! # Why it answers what brute force answers
 //! The test is the forward one-ray test, bit for bit, so only the walk's
 //! cover matters (a sphere tried before the walk blocks a ray exactly when
