@@ -176,7 +176,13 @@ impl Client {
     /// Whether the server has closed the connection.
     pub fn closed(&mut self) -> bool {
         let mut rest = Vec::new();
-        matches!(self.reader.read_to_end(&mut rest), Ok(0))
+        match self.reader.read_to_end(&mut rest) {
+            Ok(n) => n == 0,
+            // The kernel resets rather than ends a connection the server
+            // closes with bytes it has not read yet (a half-sent head); a
+            // read that times out is no close.
+            Err(e) => e.kind() == std::io::ErrorKind::ConnectionReset,
+        }
     }
 }
 
