@@ -199,7 +199,8 @@ impl<R: Real> VoxelHashGrid<R> {
             if origins.is_empty() {
                 continue;
             }
-            // A short packet repeats its last ray in the spare lanes.
+            // Lane LANES + i holds ray i of the rest; the sample's lanes (answered
+            // already) and a short packet's spare lanes repeat a ray of it.
             let padded: [V3<R>; RAYS] =
                 std::array::from_fn(|i| origins[i.saturating_sub(LANES).min(origins.len() - 1)]);
             let dirs = padded.map(|o| light - o);
@@ -333,16 +334,34 @@ impl<R: Real> VoxelHashGrid<R> {
     /// Whether a sphere blocks `ray` (reaching the light at t = 1), tried
     /// first against the call's last blocker.
     fn shadow_ray_alone(&self, ray: &Ray<R>, rays: &mut ShadowGroups<R>) -> bool {
-        let budget = &mut rays.budget;
-        let blocker = rays
-            .last_blocker
+        let ShadowGroups {
+            budget,
+            last_blocker,
+            ..
+        } = rays;
+        self.blocked_after_last(ray, last_blocker, budget, |budget| {
+            self.blocker(ray, R::one(), budget)
+        })
+    }
+
+    /// Whether `last_blocker` blocks `ray` (reaching the light at t = 1), or
+    /// else the blocker `walk` finds; a blocker found becomes the last.
+    #[inline(always)]
+    fn blocked_after_last(
+        &self,
+        ray: &Ray<R>,
+        last_blocker: &mut Option<u32>,
+        budget: &mut TestBudget,
+        walk: impl FnOnce(&mut TestBudget) -> Option<u32>,
+    ) -> bool {
+        let blocker = last_blocker
             .filter(|&b| {
                 budget.spend(1);
                 self.blocks(b, ray, R::one())
             })
-            .or_else(|| self.blocker(ray, R::one(), budget));
+            .or_else(|| walk(budget));
         if blocker.is_some() {
-            rays.last_blocker = blocker;
+            *last_blocker = blocker;
         }
         blocker.is_some()
     }
@@ -366,17 +385,11 @@ impl<R: Real> VoxelHashGrid<R> {
             let Some(wide) = Ray64::new(&ray) else {
                 continue;
             };
-            let blocker = last_blocker
-                .filter(|&b| {
-                    budget.spend(1);
-                    self.blocks(b, &ray, R::one())
-                })
-                .or_else(|| {
-                    self.blocker_in(level, &wide, &ray, R::one(), &mut Mailbox::new(), budget)
-                });
-            if blocker.is_some() {
+            let blocked = self.blocked_after_last(&ray, last_blocker, budget, |budget| {
+                self.blocker_in(level, &wide, &ray, R::one(), &mut Mailbox::new(), budget)
+            });
+            if blocked {
                 lanes.blocked |= 1 << i;
-                *last_blocker = blocker;
             }
         }
     }
