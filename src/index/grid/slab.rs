@@ -286,7 +286,7 @@ impl PlaneCells {
         let cross = packet.cross();
         // Cells are powers of two, so scaling by the reciprocal is exact
         // and rounds exactly as dividing by the side would.
-        let inv_cell = 1.0 / level.cell;
+        let inv_cell = level.per_cell;
         PlaneCells {
             start: cross.map(|a| (packet.origin[a] - level.origin[a]) * inv_cell),
             inv_cell,
