@@ -134,6 +134,41 @@ impl Mailbox {
     }
 }
 
+/// One ray's nearest hit so far, and the bound a candidate's t must stay
+/// under to be tested against it.
+struct Nearest<R: Real> {
+    best: Option<Hit<R>>,
+    /// The best t rounded up by one ulp (`t_max` before any hit): up to and
+    /// including the best t, so that an equal t with a lower id still wins,
+    /// as in brute force.
+    cap: R,
+}
+
+impl<R: Real> Nearest<R> {
+    fn new(t_max: R) -> Self {
+        Nearest {
+            best: None,
+            cap: t_max,
+        }
+    }
+
+    /// Tests `sphere`, keeping its hit if it comes first in (t, id) order.
+    #[inline(always)]
+    fn offer(&mut self, sphere: &Candidate<R>, ray: &Ray<R>, t_min: R) {
+        let Some(t) = sphere.frame.intersect(ray, t_min, self.cap) else {
+            return;
+        };
+        let hit = Hit {
+            t,
+            sphere: sphere.id,
+        };
+        if self.best.is_none_or(|b| hit.is_before(&b)) {
+            self.best = Some(hit);
+            self.cap = t.next_up();
+        }
+    }
+}
+
 /// What a walk spends its candidate tests from.
 pub(super) trait Tests {
     fn spend(&mut self, tests: u64);
@@ -274,30 +309,18 @@ impl<R: Real> VoxelHashGrid<R> {
         budget: &mut impl Tests,
     ) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
-        let mut best: Option<Hit<R>> = None;
-        let mut test = |i: u32, best: &mut Option<Hit<R>>| {
+        let mut nearest = Nearest::new(t_max);
+        let mut test = |i: u32, nearest: &mut Nearest<R>| {
             budget.spend(1);
-            let sphere = &self.spheres[i as usize];
-            // Up to and including the best t, so that an equal t with a
-            // lower id still wins, as in brute force.
-            let cap = best.map_or(t_max, |b| b.t.next_up());
-            if let Some(t) = sphere.frame.intersect(ray, t_min, cap) {
-                let hit = Hit {
-                    t,
-                    sphere: sphere.id,
-                };
-                if best.is_none_or(|b| hit.is_before(&b)) {
-                    *best = Some(hit);
-                }
-            }
+            nearest.offer(&self.spheres[i as usize], ray, t_min);
         };
         for &i in &self.short {
-            test(i, &mut best);
+            test(i, &mut nearest);
         }
         let mut mailbox = Mailbox::new();
         for level in &self.levels {
             let slack = level.slack / wide.length;
-            let reach = best.map_or(t_max, |b| b.t).to_f64() + slack;
+            let reach = nearest.best.map_or(t_max, |b| b.t).to_f64() + slack;
             level.walk(
                 &wide,
                 t_min.to_f64() - slack,
@@ -306,14 +329,14 @@ impl<R: Real> VoxelHashGrid<R> {
                 |ids| {
                     for &i in ids {
                         if mailbox.first_visit(i) {
-                            test(i, &mut best);
+                            test(i, &mut nearest);
                         }
                     }
-                    best.map_or(f64::INFINITY, |b| b.t.to_f64() + slack)
+                    nearest.best.map_or(f64::INFINITY, |b| b.t.to_f64() + slack)
                 },
             );
         }
-        best
+        nearest.best
     }
 
     /// [`SphereIndex::any_hit`], spending one of `budget` per test.

@@ -58,6 +58,13 @@ struct Axes {
     /// The cell's place in its block (0 or 3) just after a step along the
     /// axis has entered a new block.
     block_entry: [i64; 3],
+    /// The cell index one step beyond the level along the direction of
+    /// travel (−1 or the cells per axis): the walk leaves the level when it
+    /// gets there, so one comparison bounds a step.
+    exit: [i64; 3],
+    /// How a step along the axis moves the cell's bit in its block's mask
+    /// ([`cell_bit`]), while it stays in the block.
+    bit_step: [i32; 3],
 }
 
 impl Axes {
@@ -75,6 +82,11 @@ impl Axes {
             }),
             per_plane: inv.map(|inv| level.cell * inv),
             block_entry: ray.d.map(|d| if d > 0.0 { 0 } else { BLOCK_SIDE - 1 }),
+            exit: [0, 1, 2].map(|a| if ray.d[a] > 0.0 { level.dims[a] } else { -1 }),
+            bit_step: [0, 1, 2].map(|a| {
+                let step = (ray.d[a] > 0.0) as i32 - (ray.d[a] < 0.0) as i32;
+                step << (a as u32 * BLOCK_SHIFT)
+            }),
         }
     }
 
@@ -202,9 +214,11 @@ impl Level {
         empty_space: EmptySpace,
         mut visit: impl FnMut(&[u32]) -> f64,
     ) {
-        let Some((t0, mut limit)) = self.clip(ray, t_lo, t_hi) else {
+        let Some((t0, limit)) = self.clip(ray, t_lo, t_hi) else {
             return;
         };
+        // Finite, so that `t > limit` also stops at an axis never crossed (+∞).
+        let mut limit = limit.min(f64::MAX);
         let axes = Axes::new(ray, self);
         let mut c = [0; 3];
         let mut t_next = [0.0; 3];
@@ -218,13 +232,18 @@ impl Level {
         let mut region = Cached::<u64>::new();
         // The occupied block the walk is in; None until it is looked up.
         let mut block: Option<Block> = None;
+        // The walk's cell's bit in its block's mask, kept as the walk steps.
+        let mut bit = 0;
         loop {
             let cells = match block {
                 Some(cells) => cells,
                 None => {
                     let b = c.map(|v| v >> BLOCK_SHIFT);
                     match self.enter_block(c, b, block_key(b), &mut region) {
-                        Ok(cells) => *block.insert(cells),
+                        Ok(cells) => {
+                            bit = cell_bit(c);
+                            *block.insert(cells)
+                        }
                         Err(empty) => {
                             if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
                                 return;
@@ -234,8 +253,8 @@ impl Level {
                     }
                 }
             };
-            if cells.holds(cell_bit(c)) {
-                let wanted = visit(self.candidates(cells.cell_index(cell_bit(c))));
+            if cells.holds(bit) {
+                let wanted = visit(self.candidates(cells.cell_index(bit)));
                 limit = limit.min(wanted);
             }
             let Some(a) = self.step(&axes, &mut c, &mut t_next, limit) else {
@@ -243,6 +262,8 @@ impl Level {
             };
             if c[a] & (BLOCK_SIDE - 1) == axes.block_entry[a] {
                 block = None;
+            } else {
+                bit = bit.wrapping_add_signed(axes.bit_step[a]);
             }
         }
     }
@@ -304,8 +325,8 @@ impl Level {
     }
 
     /// Moves to the next cell along the ray, across a plane of the axis it
-    /// returns; None when that cell starts beyond `limit` or lies outside
-    /// the level.
+    /// returns; None when that cell starts beyond `limit` (finite) or lies
+    /// outside the level.
     #[inline(always)]
     fn step(
         &self,
@@ -315,11 +336,11 @@ impl Level {
         limit: f64,
     ) -> Option<usize> {
         let a = first_axis(t_next);
-        if t_next[a] > limit || t_next[a] == f64::INFINITY {
+        if t_next[a] > limit {
             return None;
         }
         c[a] += axes.step[a];
-        if c[a] < 0 || c[a] >= self.dims[a] {
+        if c[a] == axes.exit[a] {
             return None;
         }
         t_next[a] = axes.crossing(a, c[a]);
