@@ -206,7 +206,7 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
         occupancy: Occupancy::new(
             dims.to_array(),
             ids.len(),
-            regions.iter().map(|&(key, _)| key),
+            blocks.iter().map(|&(key, _)| key),
         ),
         regions: RegionTable::new(&regions),
         cell_start,

@@ -1,13 +1,13 @@
 //! The top of the grid's occupancy hierarchy: how far empty space reaches
-//! around each cube of regions.
+//! around each cube of blocks.
 //!
 //! Below it, a region's mask says which of its 4×4×4 blocks are occupied,
 //! and a block's mask which of its cells (see [`super::table`]). Those two
 //! are hash tables, and a probe for an absent key walks its run of slots to
 //! an empty one, in memory nothing else touches. Rays between clumps ask
 //! mostly for absent regions, so the level keeps a dense array over its
-//! whole box, one byte per group of `2^shift` cells a side (a region, or a
-//! cube of regions where the box is large), small enough to stay in cache,
+//! whole box, one byte per group of `2^shift` cells a side (a block, or a
+//! cube of blocks where the box is large), small enough to stay in cache,
 //! the way the upper nodes of a VDB tree answer for the space below them
 //! (Museth 2013, "VDB: High-Resolution Sparse Volumes with Dynamic
 //! Topology").
@@ -35,7 +35,7 @@ const SMALL_SCENE_GROUPS: i64 = 1 << 18;
 /// Per group of cells of a level's box: 0 when any block in it is occupied,
 /// else its distance to the nearest such group.
 pub struct Occupancy {
-    /// Cells per group side, as a power of two (a region's side at least).
+    /// Cells per group side, as a power of two (a block's side at least).
     pub shift: u32,
     /// Groups per axis.
     dims: [i64; 3],
@@ -44,17 +44,20 @@ pub struct Occupancy {
 
 impl Occupancy {
     /// The array of a level of `spheres` spheres in `cell_dims` cells a
-    /// side whose occupied regions (groups of 4×4×4 blocks) have the keys
-    /// `regions`.
+    /// side whose occupied blocks have the keys `blocks`.
     pub fn new(
         cell_dims: [i64; 3],
         spheres: usize,
-        regions: impl Iterator<Item = BlockKey>,
+        blocks: impl Iterator<Item = BlockKey>,
     ) -> Self {
         let budget = (spheres as i64)
             .saturating_mul(GROUPS_PER_SPHERE)
             .clamp(SMALL_SCENE_GROUPS, MAX_GROUPS);
-        let mut shift = 2 * BLOCK_SHIFT;
+        // Groups as fine as a block where the budget allows: around a lone
+        // sphere (dust between clumps) the distances then reach to within a
+        // block of it, where region-sized groups would call its whole region
+        // occupied and leave the walk to cross it block by block.
+        let mut shift = BLOCK_SHIFT;
         let groups = |shift: u32| cell_dims.map(|d| ((d - 1) >> shift) + 1);
         while groups(shift).iter().product::<i64>() > budget {
             shift += 1;
@@ -65,8 +68,8 @@ impl Occupancy {
             dims,
             distance: vec![u8::MAX; dims.iter().product::<i64>() as usize],
         };
-        let coarser = shift - 2 * BLOCK_SHIFT;
-        for key in regions {
+        let coarser = shift - BLOCK_SHIFT;
+        for key in blocks {
             let i = occupancy.index(unpack_key(key).map(|r| r >> coarser));
             occupancy.distance[i] = 0;
         }
@@ -168,16 +171,16 @@ mod tests {
     use crate::rng::Rng;
 
     #[test]
-    fn zero_on_the_groups_of_occupied_regions_and_nowhere_else() {
-        // 100 × 40 × 9 cells: regions (16 cells a side) 7 × 3 × 1.
-        let occupied = [[0, 0, 0], [6, 2, 0], [3, 1, 0]];
-        let map = Occupancy::new([100, 40, 9], 3, occupied.iter().map(|&r| block_key(r)));
-        assert_eq!(map.shift, 4);
+    fn zero_on_the_groups_of_occupied_blocks_and_nowhere_else() {
+        // 100 × 40 × 9 cells: blocks (4 cells a side) 25 × 10 × 3.
+        let occupied = [[0, 0, 0], [24, 9, 2], [12, 5, 1]];
+        let map = Occupancy::new([100, 40, 9], 3, occupied.iter().map(|&b| block_key(b)));
+        assert_eq!(map.shift, 2);
         for x in 0..100 {
             for y in 0..40 {
                 for z in 0..9 {
-                    let region = [x >> 4, y >> 4, z >> 4];
-                    assert_eq!(map.distance([x, y, z]) == 0, occupied.contains(&region));
+                    let block = [x >> 2, y >> 2, z >> 2];
+                    assert_eq!(map.distance([x, y, z]) == 0, occupied.contains(&block));
                 }
             }
         }
@@ -202,7 +205,7 @@ mod tests {
                 "{spheres} spheres: {} bytes",
                 map.bytes()
             );
-            assert_eq!(map.distance([5 << 4, 0, 9 << 4]), 0);
+            assert_eq!(map.distance([5 << 2, 0, 9 << 2]), 0);
             assert!(map.distance([side - 1, side - 1, side - 1]) > 0);
         }
     }

@@ -5,7 +5,7 @@
 //! integer index, `(origin − o)/d + i·(h/d)`, never accumulated, so it
 //! cannot drift over a million cells. An axis the ray runs parallel to (d = ±0)
 //! never steps: its next crossing is +∞. Empty space is crossed a cube at
-//! a time: the empty groups of regions around the walk's one (as far as the
+//! a time: the empty groups of blocks around the walk's one (as far as the
 //! level's proximity cloud says), an empty region (4×4×4 blocks), an empty
 //! cube of 2×2×2 blocks in an occupied region, or an empty block in one
 //! step, the walk moving to the first cell beyond the cube along the ray.
@@ -68,6 +68,8 @@ struct Axes {
 }
 
 impl Axes {
+    /// Inlined into each walk: out of line, its per-axis arrays go through memory.
+    #[inline(always)]
     fn new(ray: &Ray64, level: &Level) -> Self {
         let inv = [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] });
         Axes {
@@ -363,11 +365,17 @@ impl Level {
         // The cube's last cell along each axis's direction of travel: of
         // the groups g − r ..= g + r around the walk's group g, the first
         // cell of the lowest going down, the last cell of the highest going up.
-        let last = [0, 1, 2].map(|a| {
+        let last_on = |a: usize| {
             let up = axes.up[a];
             (((c[a] >> shift) + up * (2 * r + 1) - r) << shift) - up
-        });
-        let exits = [0, 1, 2].map(|a| axes.crossing(a, last[a]));
+        };
+        // Written out rather than `[0, 1, 2].map(..)`, which is not always inlined.
+        let last = [last_on(0), last_on(1), last_on(2)];
+        let exits = [
+            axes.crossing(0, last[0]),
+            axes.crossing(1, last[1]),
+            axes.crossing(2, last[2]),
+        ];
         let a = first_axis(&exits);
         let t_exit = exits[a];
         if t_exit > limit || t_exit == f64::INFINITY {
