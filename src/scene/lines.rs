@@ -31,20 +31,21 @@ pub(super) fn split_chunks(text: &[u8]) -> Vec<&[u8]> {
 /// The lines of `text`, without their LF or CRLF endings.
 pub(super) fn split_lines(text: &[u8]) -> impl Iterator<Item = &[u8]> {
     let text = text.strip_suffix(b"\n").unwrap_or(text);
-    let mut lines = text.split(|&b| b == b'\n');
     // An empty input has no lines at all rather than one empty line.
-    let mut first = !text.is_empty();
+    let mut rest = (!text.is_empty()).then_some(text);
     std::iter::from_fn(move || {
-        if !first {
-            return None;
-        }
-        match lines.next() {
-            Some(l) => Some(l.strip_suffix(b"\r").unwrap_or(l)),
-            None => {
-                first = false;
-                None
+        let left = rest?;
+        let line = match memchr::memchr(b'\n', left) {
+            Some(end) => {
+                rest = Some(&left[end + 1..]);
+                &left[..end]
             }
-        }
+            None => {
+                rest = None;
+                left
+            }
+        };
+        Some(line.strip_suffix(b"\r").unwrap_or(line))
     })
 }
 
@@ -74,7 +75,7 @@ pub(super) fn check_line(number: usize, start: usize, line: &[u8]) -> Result<(),
         column: column_of(line, offset),
         kind,
     };
-    if let Some(format) = signature(line).filter(|_| start == 0) {
+    if let Some(format) = (start == 0).then(|| signature(line)).flatten() {
         let byte = line[0];
         let format = Some(format);
         return Err(error(0, SceneErrorKind::Binary { byte, format }));
@@ -121,6 +122,33 @@ mod tests {
         assert!(check_line(9, limits::BINARY_SNIFF_BYTES, b"NEAR \x00").is_ok());
         let straddling = [b'x'; 16];
         assert!(check_line(2, limits::BINARY_SNIFF_BYTES - 16, &straddling).is_ok());
+    }
+
+    #[test]
+    fn lines_end_at_lf_or_crlf_and_a_last_newline_ends_no_empty_line() {
+        fn lines(text: &str) -> Vec<&[u8]> {
+            split_lines(text.as_bytes()).collect()
+        }
+        assert!(lines("").is_empty());
+        assert!(lines("\n").is_empty());
+        assert_eq!(lines("a"), [b"a"]);
+        assert_eq!(lines("a\r\n\nb\r"), [&b"a"[..], b"", b"b"]);
+        assert_eq!(lines("a\n\n"), [&b"a"[..], b""]);
+        assert_eq!(lines("\r\r\n"), [b"\r"]);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn lines_are_the_pieces_between_newlines(text in "[a\r\n]{0,12}") {
+            let text = text.as_bytes();
+            let trimmed = text.strip_suffix(b"\n").unwrap_or(text);
+            let pieces = trimmed.split(|&b| b == b'\n');
+            let expected: Vec<&[u8]> = pieces
+                .filter(|_| !trimmed.is_empty())
+                .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
+                .collect();
+            proptest::prop_assert_eq!(split_lines(text).collect::<Vec<_>>(), expected);
+        }
     }
 
     #[test]

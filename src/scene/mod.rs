@@ -7,6 +7,7 @@
 
 mod binary;
 mod bounds;
+mod decimal;
 mod diagnostic;
 mod error;
 mod lines;

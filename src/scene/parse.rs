@@ -4,6 +4,7 @@
 //! scene-wide bounds of `scene::bounds`).
 
 use super::bounds::{self, Extremes, Located};
+use super::decimal::{fast_decimal, scan_decimal};
 use super::error::Length;
 use super::lines::{check_line, column_of, split_chunks, split_lines};
 use super::{Camera, Dialect, Light, Material, Scene, SceneError, SceneErrorKind, Sphere};
@@ -49,7 +50,7 @@ impl Parser {
         // Lines before each chunk, so every chunk knows its first line's number.
         let line_counts: Vec<usize> = chunks
             .par_iter()
-            .map(|chunk| chunk.iter().filter(|&&b| b == b'\n').count())
+            .map(|chunk| memchr::memchr_iter(b'\n', chunk).count())
             .collect();
         let starts: Vec<(usize, usize)> = chunks
             .iter()
@@ -293,7 +294,7 @@ struct Tokens<'a> {
 impl<'a> Tokens<'a> {
     fn new(number: usize, line: &'a [u8], extremes: &'a mut Extremes) -> Self {
         // `#` comments run to the end of the line.
-        let line = match line.iter().position(|&b| b == b'#') {
+        let line = match memchr::memchr(b'#', line) {
             Some(hash) => &line[..hash],
             None => line,
         };
@@ -378,7 +379,27 @@ impl<'a> Tokens<'a> {
         }
     }
 
+    /// The next token as a number, and its byte offset. Inlined, like the
+    /// field readers built on it, so that a plain decimal costs no call and
+    /// no large `Result` to move; the rest is [`Tokens::unusual_number`].
+    #[inline(always)]
     fn number(&mut self, field: &'static str) -> Result<(f64, usize), SceneError> {
+        self.skip_blanks();
+        let start = self.pos;
+        match scan_decimal(self.line, start) {
+            Some((value, end)) => {
+                self.pos = end;
+                Ok((value, start))
+            }
+            None => self.unusual_number(field),
+        }
+    }
+
+    /// [`Tokens::number`] for a token that is no plain decimal: an exponent,
+    /// many digits, or no number at all.
+    #[cold]
+    #[inline(never)]
+    fn unusual_number(&mut self, field: &'static str) -> Result<(f64, usize), SceneError> {
         let Some((offset, token)) = self.next() else {
             let end = self.line.len();
             return Err(self.error_at(end, SceneErrorKind::MissingField { field }));
@@ -413,6 +434,7 @@ impl<'a> Tokens<'a> {
     }
 
     /// A number that must satisfy `ok`, which `rule` describes.
+    #[inline(always)]
     fn checked(
         &mut self,
         field: &'static str,
@@ -427,11 +449,13 @@ impl<'a> Tokens<'a> {
         }
     }
 
+    #[inline(always)]
     fn non_negative(&mut self, field: &'static str) -> Result<f64, SceneError> {
         self.checked(field, |v| v >= 0.0, "≥ 0")
     }
 
     /// A coordinate or camera value, within what the renderer can represent.
+    #[inline(always)]
     fn length(&mut self, field: &'static str) -> Result<f64, SceneError> {
         let (value, offset) = self.number(field)?;
         self.length_at(field, value, offset)?;
@@ -439,6 +463,7 @@ impl<'a> Tokens<'a> {
     }
 
     /// Checks and counts a length already read.
+    #[inline(always)]
     fn length_at(
         &mut self,
         field: &'static str,
@@ -472,6 +497,7 @@ impl<'a> Tokens<'a> {
         Ok(DVec3::new(axes[0].0, axes[1].0, axes[2].0))
     }
 
+    #[inline(always)]
     fn vector(
         &mut self,
         fields: &[&'static str],
@@ -495,50 +521,16 @@ impl<'a> Tokens<'a> {
     }
 }
 
-/// Powers of ten that f64 holds exactly.
-const EXACT_POWERS_OF_TEN: [f64; 23] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
-    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
-];
-
-/// Clinger's fast path for the plain decimals scene files are made of
-/// (`-12.375`, `0.5`, `7`): when the digits, read as an integer m, fit in 53
-/// bits and there are at most 22 after the point, m and 10^k are exact in f64
-/// and one correctly rounded division gives the correctly rounded value.
-/// Anything else (exponents, long mantissas, junk) is left to `str::parse`.
-#[inline]
-fn fast_decimal(token: &[u8]) -> Option<f64> {
-    let (negative, digits) = match token {
-        [b'-', rest @ ..] => (true, rest),
-        [b'+', rest @ ..] => (false, rest),
-        _ => (false, token),
-    };
-    let (mut mantissa, mut seen, mut after_point, mut point) = (0u64, 0usize, 0usize, false);
-    for &b in digits {
-        match b {
-            b'0'..=b'9' => {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                seen += 1;
-                after_point += usize::from(point);
-                if seen > 15 {
-                    return None;
-                }
-            }
-            b'.' if !point => point = true,
-            _ => return None,
-        }
-    }
-    if seen == 0 {
-        return None;
-    }
-    let value = mantissa as f64 / EXACT_POWERS_OF_TEN[after_point];
-    Some(if negative { -value } else { value })
-}
-
 /// A token names a sphere or light unless it reads as a number (or starts like one).
 fn looks_numeric(token: &[u8]) -> bool {
-    matches!(token.first(), Some(b'0'..=b'9' | b'+' | b'-' | b'.'))
-        || std::str::from_utf8(token).is_ok_and(|s| s.parse::<f64>().is_ok())
+    match token.first() {
+        Some(b'0'..=b'9' | b'+' | b'-' | b'.') => true,
+        // Past those, only `inf`, `infinity` and `nan` (in any case) are numbers.
+        Some(b'i' | b'I' | b'n' | b'N') => {
+            std::str::from_utf8(token).is_ok_and(|s| s.parse::<f64>().is_ok())
+        }
+        _ => false,
+    }
 }
 
 /// Parses line number `number`, counting its lengths into `extremes`.
@@ -624,12 +616,13 @@ fn extent_field(keyword: Keyword) -> &'static str {
 
 /// Consumes the name of a classic SPHERE/LIGHT line, if there is one, and tells the dialect.
 fn named_dialect(tokens: &mut Tokens) -> Dialect {
-    match tokens.peek() {
-        Some(token) if !looks_numeric(token) => {
-            tokens.next();
-            Dialect::Classic
+    let before = tokens.pos;
+    match tokens.next() {
+        Some((_, token)) if !looks_numeric(token) => Dialect::Classic,
+        _ => {
+            tokens.pos = before;
+            Dialect::Browser
         }
-        _ => Dialect::Browser,
     }
 }
 
@@ -915,42 +908,6 @@ mod tests {
     use proptest::prelude::*;
 
     #[test]
-    fn fast_decimals_match_the_standard_parser() {
-        for token in [
-            "0",
-            "-0",
-            "+7",
-            "12.375",
-            "-0.1",
-            ".5",
-            "1.",
-            "0.30000000000000004",
-            "123456789012345",
-            "1234567890123456",
-            "9007199254740993",
-            "0.000001234",
-            "1e5",
-            "-",
-            ".",
-            "1.2.3",
-            "",
-            "nan",
-            "inf",
-        ] {
-            let fast = fast_decimal(token.as_bytes());
-            let std = token.parse::<f64>().ok();
-            if let Some(v) = fast {
-                assert_eq!(Some(v.to_bits()), std.map(f64::to_bits), "{token}");
-            }
-        }
-        assert_eq!(
-            fast_decimal(b"1e5"),
-            None,
-            "exponents go to the standard parser"
-        );
-    }
-
-    #[test]
     fn misspelt_keywords_get_the_nearest_one() {
         let nearest = |token| Keyword::nearest(token).map(Keyword::name);
         assert_eq!(nearest("BAKC"), Some("BACK"), "a swap counts one");
@@ -964,13 +921,23 @@ mod tests {
     }
 
     proptest! {
+        /// Only a token that starts like a number or like `inf`/`nan` is
+        /// handed to `str::parse` to tell whether it is one.
         #[test]
-        fn fast_decimal_is_correctly_rounded(int in 0u64..10_000_000_000, frac in 0usize..12, neg: bool) {
-            let digits = int.to_string();
-            let cut = digits.len().saturating_sub(frac);
-            let token = format!("{}{}.{}", if neg { "-" } else { "" }, &digits[..cut], &digits[cut..]);
-            let fast = fast_decimal(token.as_bytes()).unwrap();
-            prop_assert_eq!(fast.to_bits(), token.parse::<f64>().unwrap().to_bits(), "{}", token);
+        fn looks_numeric_is_what_str_parse_says(token in "[iInNfFaAtTyYsS0-9+.eE-]{0,9}|\\PC{0,4}") {
+            let parses = token.parse::<f64>().is_ok();
+            let starts_like_one = matches!(token.bytes().next(), Some(b'0'..=b'9' | b'+' | b'-' | b'.'));
+            prop_assert_eq!(looks_numeric(token.as_bytes()), starts_like_one || parses, "{}", token);
+        }
+    }
+
+    #[test]
+    fn names_that_read_as_numbers_are_numbers() {
+        for token in ["inf", "Infinity", "NaN", "nan", "iNf", "+inf", "-nan", "7"] {
+            assert!(looks_numeric(token.as_bytes()), "{token}");
+        }
+        for token in ["in", "infinit", "nana", "s0", "ball", "N", "e5", "é"] {
+            assert!(!looks_numeric(token.as_bytes()), "{token}");
         }
     }
 
