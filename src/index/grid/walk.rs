@@ -72,8 +72,9 @@ impl Axes {
     #[inline(always)]
     fn new(ray: &Ray64, level: &Level) -> Self {
         let inv = [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] });
+        let step = ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64);
         Axes {
-            step: ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64),
+            step,
             up: ray.d.map(|d| (d > 0.0) as i64),
             plane0: [0, 1, 2].map(|a| {
                 if ray.d[a] == 0.0 {
@@ -85,10 +86,7 @@ impl Axes {
             per_plane: inv.map(|inv| level.cell * inv),
             block_entry: ray.d.map(|d| if d > 0.0 { 0 } else { BLOCK_SIDE - 1 }),
             exit: [0, 1, 2].map(|a| if ray.d[a] > 0.0 { level.dims[a] } else { -1 }),
-            bit_step: [0, 1, 2].map(|a| {
-                let step = (ray.d[a] > 0.0) as i32 - (ray.d[a] < 0.0) as i32;
-                step << (a as u32 * BLOCK_SHIFT)
-            }),
+            bit_step: [0, 1, 2].map(|a| (step[a] as i32) << (a as u32 * BLOCK_SHIFT)),
         }
     }
 
@@ -350,7 +348,7 @@ impl Level {
     }
 
     /// Moves from the empty cube around cell `c` to the first cell the ray
-    /// enters beyond it. False when that lies beyond `limit` or outside the
+    /// enters beyond it. False when that lies beyond `limit` (finite) or outside the
     /// level.
     fn leave_empty(
         &self,
@@ -378,7 +376,8 @@ impl Level {
         ];
         let a = first_axis(&exits);
         let t_exit = exits[a];
-        if t_exit > limit || t_exit == f64::INFINITY {
+        // The walk's limit is finite, so this also stops at +∞ (no exit).
+        if t_exit > limit {
             return false;
         }
         for k in 0..3 {
