@@ -30,33 +30,13 @@ fn value(negative: bool, mantissa: u64, after_point: usize) -> f64 {
 
 /// `token` as a plain decimal: an optional sign, then 1 to [`MAX_DIGITS`]
 /// digits with at most one point among them. Anything else (exponents,
-/// long mantissas, junk) is `None`, for `str::parse`.
+/// long mantissas, junk) is `None`, for `str::parse`. The rule of
+/// [`scan_decimal`], over the whole token.
 #[inline]
 pub(super) fn fast_decimal(token: &[u8]) -> Option<f64> {
-    let (negative, digits) = match token {
-        [b'-', rest @ ..] => (true, rest),
-        [b'+', rest @ ..] => (false, rest),
-        _ => (false, token),
-    };
-    let (mut mantissa, mut seen, mut after_point, mut point) = (0u64, 0usize, 0usize, false);
-    for &b in digits {
-        match b {
-            b'0'..=b'9' => {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                seen += 1;
-                after_point += usize::from(point);
-                if seen > MAX_DIGITS {
-                    return None;
-                }
-            }
-            b'.' if !point => point = true,
-            _ => return None,
-        }
-    }
-    if seen == 0 {
-        return None;
-    }
-    Some(value(negative, mantissa, after_point))
+    scan_decimal(token, 0)
+        .filter(|&(_, end)| end == token.len())
+        .map(|(value, _)| value)
 }
 
 /// The plain decimal (as [`fast_decimal`] reads one) that starts at byte
