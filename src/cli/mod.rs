@@ -7,6 +7,7 @@ mod completions;
 mod cores;
 mod examples;
 mod gen;
+mod heap;
 mod load;
 mod output_path;
 mod progress;
@@ -179,6 +180,9 @@ where
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };
+    if matches!(cli.command, Command::Render(_) | Command::Bench(_)) {
+        heap::keep_freed_memory();
+    }
     let result = match cli.command {
         Command::Render(args) => render::run(args),
         Command::Serve(args) => serve::run(args),
