@@ -23,6 +23,16 @@ pub fn compact_order<R: Real>(points: &[V3<R>]) -> Vec<usize> {
         let q = ((p.to_dvec3() - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(1023.0));
         morton(q.x as u32) | morton(q.y as u32) << 1 | morton(q.z as u32) << 2
     };
+    // Key and position in one integer, so that the sort compares once per
+    // pair: a block's hit points number far below 2³².
+    if let Ok(n) = u32::try_from(points.len()) {
+        let mut keyed: Vec<u64> = (0..n)
+            .zip(points)
+            .map(|(i, p)| u64::from(key(p)) << 32 | u64::from(i))
+            .collect();
+        keyed.sort_unstable();
+        return keyed.into_iter().map(|k| k as u32 as usize).collect();
+    }
     let mut keyed: Vec<(u32, usize)> = points.iter().map(key).zip(0..).collect();
     keyed.sort_unstable();
     keyed.into_iter().map(|(_, i)| i).collect()
