@@ -8,10 +8,9 @@
 //! and zeroed by the kernel once more. `voxtrace render` and `voxtrace
 //! bench` exit soon after, so they keep what they free: blocks up to the
 //! largest threshold glibc accepts (32 MiB) come from the arenas, and
-//! the arenas are not trimmed. On the 10⁶-sphere clustered family (1024²,
-//! 2 threads), page faults 110 k → 78 k and the whole process 5% faster
-//! (docs/index.md). The service does the opposite: it gives free memory
-//! back once quiet (`service::memory`).
+//! the arenas are not trimmed: fewer page faults for a larger peak
+//! (measured in docs/index.md). The service does the opposite: it gives
+//! free memory back once quiet (`service::memory`).
 //!
 //! On other platforms this does nothing: their allocators decide for themselves.
 

@@ -162,6 +162,29 @@ const WIDEST_CELLS_PER_RAY: f64 = 0.25;
 /// its sample reached the light, else one ray at a time.
 const LIT_DIVISOR: usize = 4;
 
+/// Whether shadow rays from `origins` toward one light may fan out
+/// little enough across the slabs for a packet walk: the two widest
+/// sides of the origins' box, in cells of the coarsest level (None: no
+/// level), span at most the cells [`WIDEST_CELLS_PER_RAY`] allows them.
+/// Near the origins a packet's slab rectangles are about as wide as the
+/// origins' spread seen from the light, so a packet that fails this would
+/// mostly be refused by the walk, after the cost of aiming it, in every
+/// level; its rays go one at a time at once. Only which exact walk runs
+/// depends on it.
+fn may_fan_out_little<R: Real>(origins: &[V3<R>], coarsest_cell: Option<f64>) -> bool {
+    let Some(cell) = coarsest_cell else {
+        return true;
+    };
+    let (lo, hi) = origins
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
+        });
+    let mut sides = ((hi - lo) / cell).to_array();
+    sides.sort_by(f64::total_cmp);
+    (sides[1] + 1.0) * (sides[2] + 1.0) <= WIDEST_CELLS_PER_RAY * origins.len() as f64
+}
+
 /// The rays of `groups` still unblocked, one bit per ray.
 fn open_rays<R: Real>(rays: &ShadowGroups<R>) -> u64 {
     rays.groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
@@ -185,6 +208,7 @@ impl<R: Real> VoxelHashGrid<R> {
             last_blocker: None,
         };
         let mut packet = Packet::new();
+        let coarsest_cell = self.levels.iter().map(|l| l.cell).reduce(f64::max);
         for (origins, out) in origins.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // The first group's rays, one at a time, are the sample.
             let sampled = origins.len().min(LANES);
@@ -205,7 +229,7 @@ impl<R: Real> VoxelHashGrid<R> {
                 std::array::from_fn(|i| origins[i.saturating_sub(LANES).min(origins.len() - 1)]);
             let dirs = padded.map(|o| light - o);
             if lit * LIT_DIVISOR > sampled
-                && self.may_fan_out_little(origins)
+                && may_fan_out_little::<R>(origins, coarsest_cell)
                 && aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs)
             {
                 for (g, lanes) in rays.groups.iter_mut().enumerate() {
@@ -232,29 +256,6 @@ impl<R: Real> VoxelHashGrid<R> {
             }
         }
         Answered::All
-    }
-
-    /// Whether shadow rays from `origins` toward one light may fan out
-    /// little enough across the slabs for a packet walk: the two widest
-    /// sides of the origins' box, in cells of the coarsest level, span at
-    /// most the cells [`WIDEST_CELLS_PER_RAY`] allows them. Near the
-    /// origins a packet's slab rectangles are about as wide as the origins'
-    /// spread seen from the light, so a packet that fails this would mostly
-    /// be refused by the walk, after the cost of aiming it, in every level;
-    /// its rays go one at a time at once. Only which exact walk runs
-    /// depends on it.
-    fn may_fan_out_little(&self, origins: &[V3<R>]) -> bool {
-        let Some(cell) = self.levels.iter().map(|l| l.cell).reduce(f64::max) else {
-            return true;
-        };
-        let (lo, hi) = origins
-            .iter()
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-                (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
-            });
-        let mut sides = ((hi - lo) / cell).to_array();
-        sides.sort_by(f64::total_cmp);
-        (sides[1] + 1.0) * (sides[2] + 1.0) <= WIDEST_CELLS_PER_RAY * origins.len() as f64
     }
 
     /// Tests the short list, then walks each level with the whole packet,
