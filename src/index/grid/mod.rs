@@ -286,11 +286,31 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
         t_max: R,
         out: &mut [Option<Hit<R>>],
     ) -> Answered {
-        self.packet_closest_hits(origin, dirs, t_min, t_max, out)
+        let answered = self.packet_closest_hits(origin, dirs, t_min, t_max, out);
+        if answered == Answered::GaveUp && self.every_sphere_fits(dirs.len()) {
+            for (&dir, hit) in dirs.iter().zip(out) {
+                let ray = Ray::new(origin, dir);
+                let mut nearest = Nearest::new(t_max);
+                for sphere in &self.spheres {
+                    nearest.offer(sphere, &ray, t_min);
+                }
+                *hit = nearest.best;
+            }
+            return Answered::All;
+        }
+        answered
     }
 
     fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) -> Answered {
-        self.packet_any_hits_toward(light, origins, out)
+        let answered = self.packet_any_hits_toward(light, origins, out);
+        if answered == Answered::GaveUp && self.every_sphere_fits(origins.len()) {
+            for (&o, blocked) in origins.iter().zip(out) {
+                let ray = Ray::new(o, light - o);
+                *blocked = (0..self.spheres.len() as u32).any(|i| self.blocks(i, &ray, R::one()));
+            }
+            return Answered::All;
+        }
+        answered
     }
 
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
@@ -337,6 +357,17 @@ impl<R: Real> VoxelHashGrid<R> {
             );
         }
         nearest.best
+    }
+
+    /// Whether testing every sphere for each of `rays` rays fits in a
+    /// call's budget of tests. Then a call whose walks ran out of it (a
+    /// small scene whose cells crowd so that the walks cost more than
+    /// brute force: spheres far smaller than the rounding of their
+    /// coordinates, say) answers every ray by testing every sphere, with
+    /// the walks' own test and order, so the same answers and still within
+    /// about twice the budget.
+    fn every_sphere_fits(&self, rays: usize) -> bool {
+        (rays as u64).saturating_mul(self.spheres.len() as u64) <= self.packet_tests
     }
 
     /// [`SphereIndex::any_hit`], spending one of `budget` per test.
