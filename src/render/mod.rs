@@ -199,9 +199,14 @@ pub fn render_in<R: Real>(
     )
 }
 
-/// The scene's spheres in the precision `R`, in id order.
+/// The scene's spheres in the precision `R`, in id order (converted in
+/// parallel, each thread writing its share in place).
 fn shapes_of<R: Real>(scene: &Scene) -> Vec<Ellipsoid<R>> {
-    scene.spheres.iter().map(Ellipsoid::from_sphere).collect()
+    scene
+        .spheres
+        .par_iter()
+        .map(Ellipsoid::from_sphere)
+        .collect()
 }
 
 /// The index `kind` names, built over `shapes`. One dynamic call per ray

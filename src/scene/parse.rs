@@ -61,21 +61,28 @@ impl Parser {
                 Some(first)
             })
             .collect();
-        let parsed: Vec<ParsedChunk> = chunks
+        let mut parsed: Vec<ParsedChunk> = chunks
             .par_iter()
-            .zip(&starts)
-            .map(|(chunk, &(first, offset))| parse_chunk(chunk, first, offset))
+            .zip(starts.par_iter().zip(&line_counts))
+            .map(|(chunk, (&(first, offset), &lines))| parse_chunk(chunk, first, offset, lines))
             .collect();
         for ((chunk, text), (&(first, _), &newlines)) in parsed
-            .into_iter()
+            .iter_mut()
             .zip(&chunks)
             .zip(starts.iter().zip(&line_counts))
         {
-            self.builder.reserve(chunk.spheres);
-            for (line, directive) in chunk.directives {
-                self.builder.apply(line, directive)?;
+            let mut lines = chunk.sphere_lines.as_slice();
+            for (line, folded) in chunk.directives.drain(..) {
+                match folded {
+                    Folded::One(directive) => self.builder.apply(line, directive)?,
+                    Folded::Spheres(dialect, count) => {
+                        let (run, rest) = lines.split_at(count);
+                        self.builder.count_spheres(run, dialect)?;
+                        lines = rest;
+                    }
+                }
             }
-            if let Some(error) = chunk.error {
+            if let Some(error) = chunk.error.take() {
                 let line = split_lines(text)
                     .nth(error.line - first)
                     .unwrap_or_default();
@@ -84,6 +91,7 @@ impl Parser {
             self.builder.extremes.merge(&chunk.extremes);
             self.next_line = first + newlines;
         }
+        self.builder.append_spheres(&parsed);
         self.offset += text.len();
         Ok(())
     }
@@ -104,20 +112,41 @@ impl Parser {
     }
 }
 
-/// The directives of one chunk up to its first error.
+/// The directives of one chunk up to its first error. Its sphere lines are
+/// [`Folded::Spheres`] runs there, their spheres kept apart, so that
+/// the fold, which runs on one thread, counts them a run at a time and the
+/// scene takes them all at once, in parallel.
 struct ParsedChunk {
-    directives: Vec<(usize, Directive)>,
-    spheres: usize,
+    directives: Vec<(usize, Folded)>,
+    /// The spheres of the chunk's runs, in line order, and their lines.
+    spheres: Vec<Sphere>,
+    sphere_lines: Vec<usize>,
     extremes: Extremes,
     error: Option<SceneError>,
 }
 
+impl ParsedChunk {
+    /// Adds the sphere of line `number` to the chunk's last run, or starts
+    /// a run if the directive before it was not a sphere of its dialect.
+    fn add_sphere(&mut self, number: usize, sphere: Sphere, dialect: Dialect) {
+        match self.directives.last_mut() {
+            Some((_, Folded::Spheres(last, count))) if *last == dialect => *count += 1,
+            _ => self.directives.push((number, Folded::Spheres(dialect, 1))),
+        }
+        self.spheres.push(sphere);
+        self.sphere_lines.push(number);
+    }
+}
+
 /// Parses the lines of a chunk whose first line is number `first` and
-/// starts `offset` bytes into the text, stopping at the first error.
-fn parse_chunk(chunk: &[u8], first: usize, offset: usize) -> ParsedChunk {
+/// starts `offset` bytes into the text, and which ends `newlines` lines,
+/// stopping at the first error.
+fn parse_chunk(chunk: &[u8], first: usize, offset: usize, newlines: usize) -> ParsedChunk {
+    // Nearly every line of a large scene is a sphere's.
     let mut parsed = ParsedChunk {
         directives: Vec::new(),
-        spheres: 0,
+        spheres: Vec::with_capacity(newlines + 1),
+        sphere_lines: Vec::with_capacity(newlines + 1),
         extremes: Extremes::default(),
         error: None,
     };
@@ -129,10 +158,8 @@ fn parse_chunk(chunk: &[u8], first: usize, offset: usize) -> ParsedChunk {
             .and_then(|()| parse_line(number, line, &mut parsed.extremes));
         match result {
             Ok(Directive::Blank) => {}
-            Ok(directive) => {
-                parsed.spheres += usize::from(matches!(directive, Directive::Sphere(..)));
-                parsed.directives.push((number, directive));
-            }
+            Ok(Directive::Sphere(sphere, dialect)) => parsed.add_sphere(number, sphere, dialect),
+            Ok(directive) => parsed.directives.push((number, Folded::One(directive))),
             Err(error) => {
                 parsed.error = Some(error);
                 break;
@@ -141,6 +168,9 @@ fn parse_chunk(chunk: &[u8], first: usize, offset: usize) -> ParsedChunk {
     }
     parsed
 }
+
+/// Spheres one task of [`SceneBuilder::append_spheres`] copies at least.
+const APPENDED_PER_TASK: usize = 1 << 12;
 
 /// What one line says.
 #[derive(Debug)]
@@ -154,6 +184,16 @@ enum Directive {
     Output(String),
     Sphere(Sphere, Dialect),
     Light(Light, Dialect),
+}
+
+/// What a chunk hands the fold, line by line.
+#[derive(Debug)]
+enum Folded {
+    /// A line's directive, other than a sphere.
+    One(Directive),
+    /// A run of this many sphere lines in a row (blank lines aside), all
+    /// of one dialect, from this line on (see [`ParsedChunk`]).
+    Spheres(Dialect, usize),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -713,6 +753,8 @@ struct SceneBuilder {
     output: Given<String>,
     dialect: Given<Dialect>,
     spheres: Vec<Sphere>,
+    /// Spheres folded so far, some of them not yet in `spheres`.
+    sphere_count: usize,
     lights: Vec<Light>,
     /// The lengths of the lines folded so far, for the scene-wide bounds.
     extremes: Extremes,
@@ -741,10 +783,55 @@ fn set_once<T>(
 }
 
 impl SceneBuilder {
-    /// Makes room for `more` spheres (capped: a count is only a hint).
-    fn reserve(&mut self, more: usize) {
-        self.spheres
-            .reserve(more.min(limits::MAX_SPHERES.saturating_sub(self.spheres.len())));
+    /// Folds a run of sphere lines `lines` of one dialect, as [`Self::apply`]
+    /// would line by line: only the first can be of another dialect than
+    /// the scene's, and the first past the limit is the one refused.
+    fn count_spheres(&mut self, lines: &[usize], dialect: Dialect) -> Result<(), SceneError> {
+        self.count_spheres_within(lines, dialect, limits::MAX_SPHERES)
+    }
+
+    /// [`Self::count_spheres`] under a limit of `limit` spheres.
+    fn count_spheres_within(
+        &mut self,
+        lines: &[usize],
+        dialect: Dialect,
+        limit: usize,
+    ) -> Result<(), SceneError> {
+        let Some(&first) = lines.first() else {
+            return Ok(());
+        };
+        self.check_dialect(first, dialect)?;
+        let room = limit.saturating_sub(self.sphere_count);
+        if let Some(&line) = lines.get(room) {
+            check_count(line, limit, limit, "spheres")?;
+        }
+        self.sphere_count += lines.len();
+        Ok(())
+    }
+
+    /// Appends the spheres of `chunks`, once they are all folded, in
+    /// parallel: each thread copies its share straight into place.
+    fn append_spheres(&mut self, chunks: &[ParsedChunk]) {
+        let starts: Vec<usize> = chunks
+            .iter()
+            .scan(0, |n, chunk| {
+                let start = *n;
+                *n += chunk.spheres.len();
+                Some(start)
+            })
+            .collect();
+        let total = chunks.iter().map(|chunk| chunk.spheres.len()).sum();
+        self.spheres.par_extend(
+            (0..total)
+                .into_par_iter()
+                .with_min_len(APPENDED_PER_TASK)
+                .map(|i| {
+                    // The last chunk starting at or before i (an empty
+                    // chunk starts where the next does).
+                    let c = starts.partition_point(|&start| start <= i) - 1;
+                    chunks[c].spheres[i - starts[c]]
+                }),
+        );
     }
 
     fn apply(&mut self, line: usize, directive: Directive) -> Result<(), SceneError> {
@@ -767,8 +854,7 @@ impl SceneBuilder {
             Directive::Ambient(c) => set_once(&mut self.ambient, c, line, Keyword::Ambient),
             Directive::Output(name) => set_once(&mut self.output, name, line, Keyword::Output),
             Directive::Sphere(sphere, dialect) => {
-                self.check_dialect(line, dialect)?;
-                check_count(line, self.spheres.len(), limits::MAX_SPHERES, "spheres")?;
+                self.count_spheres(&[line], dialect)?;
                 self.spheres.push(sphere);
                 Ok(())
             }
@@ -939,6 +1025,71 @@ mod tests {
         for token in ["in", "infinit", "nana", "s0", "ball", "N", "e5", "é"] {
             assert!(!looks_numeric(token.as_bytes()), "{token}");
         }
+    }
+
+    /// Sphere lines fold a run at a time, across chunks, blank lines and
+    /// lights, into the scene's spheres in file order; a sphere of the
+    /// other dialect, first of its run far into the file, is refused at its
+    /// line, naming the scene's first object line.
+    #[test]
+    fn sphere_runs_fold_as_their_lines_do() {
+        let mut text = String::from("NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\n");
+        let mut line = 6;
+        let mut spheres = 0;
+        while text.len() < 3 * CHUNK_BYTES {
+            text += &format!("SPHERE s {spheres} 0 -5 1 1 1 0.5 0.5 0.5 1 1 1 0 50\n");
+            (line, spheres) = (line + 1, spheres + 1);
+            if spheres % 997 == 0 {
+                text += "\nLIGHT l 0 0 0 1 1 1\n";
+                line += 2;
+            }
+        }
+        let scene = parse(&text).unwrap();
+        assert_eq!(scene.spheres.len(), spheres);
+        assert!(scene
+            .spheres
+            .iter()
+            .enumerate()
+            .all(|(i, s)| s.center.x == i as f64));
+        assert_eq!(scene.lights.len(), spheres / 997);
+        // After a light, so first of its run, in the last chunk.
+        let browser = "SPHERE 0 0 -5 1 1 1 0.5 0.5 0.5 1 1 1 50 0 0 1\n";
+        let bad = format!("{text}LIGHT l 0 0 0 1 1 1\n\n{browser}{browser}");
+        let error = parse(&bad).unwrap_err();
+        assert_eq!((error.line, error.column), (line + 3, 1));
+        assert_eq!(error.kind, SceneErrorKind::MixedDialects { first_line: 7 });
+        // In the other dialect from the start, the same lines all parse.
+        let scene = parse(format!(
+            "{}{browser}{browser}",
+            &text[..text.find("SPHERE").unwrap()]
+        ))
+        .unwrap();
+        assert_eq!(scene.spheres.len(), 2);
+    }
+
+    /// The first sphere past the limit is refused at its own line, whether
+    /// it starts its run or lies inside one.
+    #[test]
+    fn the_first_sphere_past_the_limit_is_the_one_refused() {
+        let refused = |runs: &[&[usize]], limit| {
+            let mut builder = SceneBuilder::default();
+            runs.iter()
+                .try_for_each(|run| builder.count_spheres_within(run, Dialect::Classic, limit))
+                .map_err(|e| (e.line, e.kind))
+        };
+        let too_many = |line| {
+            Err((
+                line,
+                SceneErrorKind::TooMany {
+                    what: "spheres",
+                    limit: 3,
+                },
+            ))
+        };
+        assert_eq!(refused(&[&[7, 8, 10]], 3), Ok(()));
+        assert_eq!(refused(&[&[7, 8, 10, 11, 12]], 3), too_many(11));
+        assert_eq!(refused(&[&[7, 8], &[10], &[12, 13]], 3), too_many(12));
+        assert_eq!(refused(&[&[7, 8], &[10, 11]], 3), too_many(11));
     }
 
     /// Chunked parsing reports the first error of the file with its exact
