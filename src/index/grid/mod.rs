@@ -289,12 +289,7 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
         let answered = self.packet_closest_hits(origin, dirs, t_min, t_max, out);
         if answered == Answered::GaveUp && self.every_sphere_fits(dirs.len()) {
             for (&dir, hit) in dirs.iter().zip(out) {
-                let ray = Ray::new(origin, dir);
-                let mut nearest = Nearest::new(t_max);
-                for sphere in &self.spheres {
-                    nearest.offer(sphere, &ray, t_min);
-                }
-                *hit = nearest.best;
+                *hit = self.nearest_of_all(&Ray::new(origin, dir), t_min, t_max);
             }
             return Answered::All;
         }
@@ -305,8 +300,7 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
         let answered = self.packet_any_hits_toward(light, origins, out);
         if answered == Answered::GaveUp && self.every_sphere_fits(origins.len()) {
             for (&o, blocked) in origins.iter().zip(out) {
-                let ray = Ray::new(o, light - o);
-                *blocked = (0..self.spheres.len() as u32).any(|i| self.blocks(i, &ray, R::one()));
+                *blocked = self.blocked_by_any(&Ray::new(o, light - o), R::one());
             }
             return Answered::All;
         }
@@ -368,6 +362,22 @@ impl<R: Real> VoxelHashGrid<R> {
     /// about twice the budget.
     fn every_sphere_fits(&self, rays: usize) -> bool {
         (rays as u64).saturating_mul(self.spheres.len() as u64) <= self.packet_tests
+    }
+
+    /// The ray's nearest hit with t in [t_min, t_max] among every sphere,
+    /// with the walks' test and (t, id) order (see [`Self::every_sphere_fits`]).
+    fn nearest_of_all(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>> {
+        let mut nearest = Nearest::new(t_max);
+        for sphere in &self.spheres {
+            nearest.offer(sphere, ray, t_min);
+        }
+        nearest.best
+    }
+
+    /// Whether any sphere meets the ray with t in (0, t_max), with the
+    /// walks' test (see [`Self::every_sphere_fits`]).
+    fn blocked_by_any(&self, ray: &Ray<R>, t_max: R) -> bool {
+        (0..self.spheres.len() as u32).any(|i| self.blocks(i, ray, t_max))
     }
 
     /// [`SphereIndex::any_hit`], spending one of `budget` per test.
