@@ -138,7 +138,9 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
     /// Which shadow rays of the eye hits `hits` (at `surfaces`, None where
     /// a ray missed) are blocked, into `blocked`: row i (one entry per
     /// light) for hit i. The rays toward one light from all the hits are
-    /// traced together, in [`compact_order`] of their origins. `counts` gets the rays traced and `packed` those of them
+    /// traced together, in [`compact_order`] of the hit points (one order
+    /// for every light: a point's shadow rays start within a few f32 units
+    /// of it). `counts` gets the rays traced and `packed` those of them
     /// traced in packets. False if told to stop.
     pub fn eye_shadows(
         &self,
@@ -151,24 +153,29 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         let lights = self.lights.len();
         blocked.clear();
         blocked.resize(hits.len() * lights, false);
+        let lit: Vec<(usize, &SurfacePoint<R>)> = hits
+            .iter()
+            .zip(surfaces)
+            .enumerate()
+            .filter_map(|(i, (hit, surface))| {
+                let (hit, surface) = (hit.as_ref()?, surface.as_ref()?);
+                let m = &self.scene.spheres[hit.sphere as usize].material;
+                takes_direct_light(m).then_some((i, surface))
+            })
+            .collect();
+        // Neighbours together, so that the index's packets are coherent.
+        let points: Vec<V3<R>> = lit.iter().map(|(_, surface)| surface.point).collect();
+        let order = compact_order::<R>(&points);
         let (mut which, mut origins, mut out) = (Vec::new(), Vec::new(), Vec::new());
         for (l, &(position, _)) in self.lights.iter().enumerate() {
             which.clear();
             origins.clear();
-            for (i, (hit, surface)) in hits.iter().zip(surfaces).enumerate() {
-                let (Some(hit), Some(surface)) = (hit, surface) else {
-                    continue;
-                };
-                let m = &self.scene.spheres[hit.sphere as usize].material;
-                if takes_direct_light(m) && faces(surface, position).is_some() {
+            for &(i, surface) in order.iter().map(|&k| &lit[k]) {
+                if faces(surface, position).is_some() {
                     which.push(i);
                     origins.push(spawn_origin(surface, position - surface.point));
                 }
             }
-            // Neighbours together, so that the index's packets are coherent.
-            let order = compact_order::<R>(&origins);
-            which = order.iter().map(|&k| which[k]).collect();
-            origins = order.iter().map(|&k| origins[k]).collect();
             out.clear();
             out.resize(origins.len(), false);
             if !self.trace_shadow_rays(position, &origins, &mut out, counts, packed) {
