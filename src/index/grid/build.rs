@@ -62,7 +62,7 @@ mod pairs;
 mod radix;
 
 use super::occupancy::Occupancy;
-use super::table::{regions, BlockTable, RegionTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS};
+use super::table::{BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS};
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
 use cell::merge_equal_cells;
@@ -194,7 +194,6 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
     } else {
         sorted_cells::<u128>(&code, ids, cell_box, order)
     };
-    let regions = regions(&blocks);
     Level {
         cell,
         per_cell: reciprocal(cell),
@@ -208,7 +207,6 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
             ids.len(),
             blocks.iter().map(|&(key, _)| key),
         ),
-        regions: RegionTable::new(&regions),
         cell_start,
         ids: candidates,
     }

@@ -2,9 +2,9 @@
 //!
 //! Spheres are split into levels by size (see [`build`] for the rule). Each
 //! level is a uniform grid over the bounding box of its own spheres, stored
-//! sparsely: a hash table of occupied 4×4×4 blocks ([`table`]) whose masks
-//! lead to the occupied cells, each a run in one flat array of sphere ids
-//! (CSR). A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
+//! sparsely: a hash table of occupied regions of 4×4×4 blocks, whose masks
+//! lead to the occupied 4×4×4 blocks of cells ([`table`]), whose masks lead
+//! to the occupied cells, each a run in one flat array of sphere ids (CSR). A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
 //! coarsest level first, and jumps over empty blocks in one step. Eye rays
 //! of a tile ([`packet`]) and shadow rays from a tile toward one light
 //! ([`shadow`]) walk each level together, slab by slab ([`slab`]).
@@ -28,7 +28,7 @@ use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
 pub use packet::RAYS as PACKET_RAYS;
 use rayon::prelude::*;
-use table::{BlockTable, RegionTable};
+use table::BlockTable;
 use walk::Ray64;
 
 /// How a ray crosses space no sphere occupies.
@@ -56,9 +56,8 @@ pub struct Level {
     /// How far (in distance along a ray) a rounded hit of one of this level's
     /// spheres may lie before the cell the walk finds it in.
     slack: f64,
+    /// Which blocks and cells are occupied (see [`table`]).
     table: BlockTable,
-    /// Which blocks are occupied, 4×4×4 blocks at a time.
-    regions: RegionTable,
     /// Which groups of regions hold anything, densely.
     occupancy: occupancy::Occupancy,
     /// Occupied cell i holds `ids[cell_start[i]..cell_start[i + 1]]`.
@@ -77,10 +76,7 @@ pub struct LevelInfo {
 
 impl Level {
     fn bytes(&self) -> usize {
-        self.table.bytes()
-            + self.regions.bytes()
-            + self.occupancy.bytes()
-            + 4 * (self.cell_start.len() + self.ids.len())
+        self.table.bytes() + self.occupancy.bytes() + 4 * (self.cell_start.len() + self.ids.len())
     }
 
     #[inline(always)]

@@ -2,9 +2,9 @@
 //! around each cube of blocks.
 //!
 //! Below it, a region's mask says which of its 4×4×4 blocks are occupied,
-//! and a block's mask which of its cells (see [`super::table`]). Those two
-//! are hash tables, and a probe for an absent key walks its run of slots to
-//! an empty one, in memory nothing else touches. Rays between clumps ask
+//! and a block's mask which of its cells (see [`super::table`]). Regions
+//! are found in a hash table, and a probe for an absent key walks its run
+//! of slots to an empty one, in memory nothing else touches. Rays between clumps ask
 //! mostly for absent regions, so the level keeps a dense array over its
 //! whole box, one byte per group of `2^shift` cells a side (a block, or a
 //! cube of blocks where the box is large), small enough to stay in cache,

@@ -503,7 +503,7 @@ impl Level {
                 b[k] = s >> BLOCK_SHIFT;
                 b[u] = bu;
                 b[v] = bv;
-                let block = self.table.get(block_key(b));
+                let block = self.table.get(b);
                 any |= block.is_some();
                 if let Some(slot) = slot.next() {
                     *slot = block;
@@ -533,7 +533,7 @@ impl Level {
                 r[k] = region(blocks[0]);
                 r[u] = ru;
                 r[v] = rv;
-                let mask = match self.regions.get(block_key(r)) {
+                let mask = match self.table.region(block_key(r)).map(|r| r.blocks) {
                     None => continue,
                     Some(u64::MAX) => return true,
                     Some(mask) => mask,
@@ -581,7 +581,7 @@ impl Level {
                     _ => {
                         let mut c = [0; 3];
                         (c[k], c[u], c[v]) = (s, cu, cv);
-                        self.table.get(block_key(c.map(|x| x >> BLOCK_SHIFT)))
+                        self.table.get(c.map(|x| x >> BLOCK_SHIFT))
                     }
                 };
                 let bit = bit_ku | bit_on(v, cv);

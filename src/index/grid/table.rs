@@ -1,18 +1,17 @@
-//! The per-level hash table of occupied blocks.
+//! The per-level table of occupied blocks, reached through their regions.
 //!
-//! Cells are grouped into blocks of 4×4×4. The table maps a block's integer
-//! coordinates to a 64-bit occupancy mask (bit = cell inside the block) and
-//! the index of the block's first occupied cell in the level's CSR arrays. An
-//! occupied cell's index is that first index plus the number of occupied cells
-//! before it in the mask (a popcount), so the table stores occupied cells
-//! only, without a slot of their own, and a ray crossing a block learns in one
-//! probe which of its 64 cells hold anything: that is the coarse occupancy
-//! that lets it skip empty space.
-//!
-//! Blocks are grouped in turn into regions of 4×4×4 blocks, and a second,
-//! much smaller table maps a region to the mask of its occupied blocks: a
-//! packet learns from one probe there whether a layer of its slabs meets
-//! any occupied block at all.
+//! Cells are grouped into blocks of 4×4×4, and blocks into regions of 4×4×4
+//! blocks. A hash table maps a region's integer coordinates to the 64-bit
+//! mask of its occupied blocks and the index of its first one in a dense
+//! array of blocks, region after region; a block's index is that first
+//! index plus the number of occupied blocks before it in the mask (a
+//! popcount). Each block holds, the same way, the mask of its occupied
+//! cells and the index of its first occupied cell in the level's CSR
+//! arrays. So the table stores occupied blocks and cells only, a ray that
+//! enters a region learns in one probe which of its 64 blocks hold
+//! anything, and one that moves between the blocks of a region it knows
+//! already reaches the next block without another probe: that is the
+//! coarse occupancy that lets it skip empty space.
 //!
 //! Open addressing with linear probing, power-of-two capacity, load ≤ 2/3.
 //! The full key is stored, so a hash collision costs a probe, never a
@@ -105,6 +104,87 @@ impl Block {
     }
 }
 
+/// An occupied region: which of its blocks are occupied, and where they
+/// start in the level's dense array of blocks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Region {
+    pub blocks: u64,
+    pub first_block: u32,
+}
+
+impl Region {
+    #[inline(always)]
+    pub fn holds(&self, bit: u32) -> bool {
+        self.blocks >> bit & 1 != 0
+    }
+}
+
+/// The occupied blocks of one level, reached through their regions.
+pub struct BlockTable {
+    regions: GroupTable<Region>,
+    /// Region by region, each region's blocks in the order of their bits.
+    blocks: Vec<Block>,
+}
+
+impl BlockTable {
+    /// A table for `blocks`, whose keys must be distinct.
+    pub fn new(blocks: &[(BlockKey, Block)]) -> Self {
+        // (region key, block bit) in one integer: a region key takes 57 bits.
+        let mut order: Vec<(u64, Block)> = blocks
+            .iter()
+            .map(|&(key, block)| {
+                let b = unpack_key(key);
+                let region = block_key(b.map(|v| v >> BLOCK_SHIFT));
+                (region << 6 | u64::from(cell_bit(b)), block)
+            })
+            .collect();
+        order.sort_unstable_by_key(|&(at, _)| at);
+        let mut regions: Vec<(BlockKey, Region)> = Vec::new();
+        for (i, &(at, _)) in order.iter().enumerate() {
+            let (key, bit) = (at >> 6, 1u64 << (at & 63));
+            match regions.last_mut() {
+                Some((last, region)) if *last == key => region.blocks |= bit,
+                _ => regions.push((
+                    key,
+                    Region {
+                        blocks: bit,
+                        first_block: i as u32,
+                    },
+                )),
+            }
+        }
+        BlockTable {
+            regions: GroupTable::new(&regions),
+            blocks: order.into_iter().map(|(_, block)| block).collect(),
+        }
+    }
+
+    /// The occupied region `key` (region coordinates, packed).
+    #[inline(always)]
+    pub fn region(&self, key: BlockKey) -> Option<Region> {
+        self.regions.get(key)
+    }
+
+    /// The block with bit `bit` in `region`, which must hold it.
+    #[inline(always)]
+    pub fn block_in(&self, region: Region, bit: u32) -> Block {
+        let below = region.blocks & ((1u64 << bit) - 1);
+        self.blocks[region.first_block as usize + below.count_ones() as usize]
+    }
+
+    /// The occupied block at block coordinates `b`.
+    #[inline(always)]
+    pub fn get(&self, b: [i64; 3]) -> Option<Block> {
+        let region = self.region(block_key(b.map(|v| v >> BLOCK_SHIFT)))?;
+        let bit = cell_bit(b);
+        region.holds(bit).then(|| self.block_in(region, bit))
+    }
+
+    pub fn bytes(&self) -> usize {
+        self.regions.bytes() + self.blocks.capacity() * std::mem::size_of::<Block>()
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Slot<V> {
     key: BlockKey,
@@ -112,37 +192,10 @@ struct Slot<V> {
 }
 
 /// A hash table from packed 4×4×4-group coordinates to `V`.
-pub struct GroupTable<V> {
+struct GroupTable<V> {
     slots: Vec<Slot<V>>,
     mask: usize,
 }
-
-/// Occupied blocks, by block coordinates.
-pub type BlockTable = GroupTable<Block>;
-
-/// The regions (4×4×4 blocks) holding `blocks`, each with the mask of its
-/// occupied blocks, keyed by region coordinates.
-pub fn regions(blocks: &[(BlockKey, Block)]) -> Vec<(BlockKey, u64)> {
-    let mut bits: Vec<(BlockKey, u64)> = blocks
-        .iter()
-        .map(|&(key, _)| {
-            let b = unpack_key(key);
-            (block_key(b.map(|v| v >> BLOCK_SHIFT)), 1u64 << cell_bit(b))
-        })
-        .collect();
-    bits.sort_unstable_by_key(|&(key, _)| key);
-    let mut regions: Vec<(BlockKey, u64)> = Vec::new();
-    for (key, bit) in bits {
-        match regions.last_mut() {
-            Some((last, mask)) if *last == key => *mask |= bit,
-            _ => regions.push((key, bit)),
-        }
-    }
-    regions
-}
-/// The masks of the occupied blocks of each region (4×4×4 blocks holding
-/// any), by region coordinates.
-pub type RegionTable = GroupTable<u64>;
 
 /// murmur3's 64-bit finaliser: every key bit reaches every hash bit, so
 /// blocks along a line or a plane do not crowd one stretch of the table.
@@ -157,7 +210,7 @@ fn mix(mut k: u64) -> u64 {
 
 impl<V: Copy + Default> GroupTable<V> {
     /// A table for `entries`, whose keys must be distinct.
-    pub fn new(entries: &[(BlockKey, V)]) -> Self {
+    fn new(entries: &[(BlockKey, V)]) -> Self {
         let capacity = (entries.len() * 3).div_ceil(2).next_power_of_two().max(2);
         let empty = Slot {
             key: EMPTY,
@@ -178,7 +231,7 @@ impl<V: Copy + Default> GroupTable<V> {
     }
 
     #[inline(always)]
-    pub fn get(&self, key: BlockKey) -> Option<V> {
+    fn get(&self, key: BlockKey) -> Option<V> {
         let mut i = mix(key) as usize & self.mask;
         loop {
             let slot = &self.slots[i];
@@ -192,7 +245,7 @@ impl<V: Copy + Default> GroupTable<V> {
         }
     }
 
-    pub fn bytes(&self) -> usize {
+    fn bytes(&self) -> usize {
         self.slots.len() * std::mem::size_of::<Slot<V>>()
     }
 }
@@ -215,10 +268,12 @@ mod tests {
             .collect();
         let table = BlockTable::new(&blocks);
         for &(key, block) in &blocks {
-            assert_eq!(table.get(key), Some(block));
+            assert_eq!(table.get(unpack_key(key)), Some(block));
         }
-        assert_eq!(table.get(block_key([100, 0, 0])), None);
-        assert!(table.bytes() >= 2000 * 24);
+        for absent in [[100, 0, 0], [7, 0, 0], [3, 11, 0], [6, 10, 13]] {
+            assert_eq!(table.get(absent), None, "{absent:?}");
+        }
+        assert!(table.bytes() >= 1000 * 16);
     }
 
     #[test]
@@ -238,21 +293,27 @@ mod tests {
 
     #[test]
     fn regions_gather_the_masks_of_their_blocks() {
-        let block = Block::default();
-        let blocks =
-            [[0, 0, 0], [3, 3, 3], [4, 0, 0], [5, 9, 2], [1, 2, 3]].map(|b| (block_key(b), block));
-        let mut regions = regions(&blocks);
-        regions.sort_unstable();
-        let mut expected = vec![
-            (
-                block_key([0, 0, 0]),
-                1 | 1 << 63 | 1 << (1 | 2 << 2 | 3 << 4),
-            ),
-            (block_key([1, 0, 0]), 1),
-            (block_key([1, 2, 0]), 1u64 << (1 | 1 << 2 | 2 << 4)),
-        ];
-        expected.sort_unstable();
-        assert_eq!(regions, expected);
+        let blocks = [[0, 0, 0], [3, 3, 3], [4, 0, 0], [5, 9, 2], [1, 2, 3]];
+        let entries = blocks.map(|b| {
+            let block = Block {
+                occupied: 1,
+                first_cell: b.iter().sum::<i64>() as u32,
+            };
+            (block_key(b), block)
+        });
+        let table = BlockTable::new(&entries);
+        let mask = |r| table.region(block_key(r)).map(|r| r.blocks);
+        assert_eq!(
+            mask([0, 0, 0]),
+            Some(1 | 1 << 63 | 1 << (1 | 2 << 2 | 3 << 4))
+        );
+        assert_eq!(mask([1, 0, 0]), Some(1));
+        assert_eq!(mask([1, 2, 0]), Some(1u64 << (1 | 1 << 2 | 2 << 4)));
+        assert_eq!(mask([0, 1, 0]), None);
+        // Each block is found through its region, with its own contents.
+        let region = table.region(block_key([0, 0, 0])).unwrap();
+        assert_eq!(table.block_in(region, 63).first_cell, 9);
+        assert_eq!(table.block_in(region, 1 | 2 << 2 | 3 << 4).first_cell, 6);
         assert_eq!(unpack_key(block_key([5, 9, 2])), [5, 9, 2]);
     }
 

@@ -10,7 +10,7 @@
 //! cube of 2×2×2 blocks in an occupied region, or an empty block in one
 //! step, the walk moving to the first cell beyond the cube along the ray.
 
-use super::table::{block_key, cell_bit, Block, BlockKey, BLOCK_SHIFT, BLOCK_SIDE};
+use super::table::{block_key, cell_bit, Block, BlockKey, Region, BLOCK_SHIFT, BLOCK_SIDE};
 use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
 use glam::DVec3;
@@ -229,7 +229,7 @@ impl Level {
         if empty_space == EmptySpace::ProbeEveryCell {
             return self.walk_probing(&axes, c, t_next, limit, visit);
         }
-        let mut region = Cached::<u64>::new();
+        let mut region = Cached::<Region>::new();
         // The occupied block the walk is in; None until it is looked up.
         let mut block: Option<Block> = None;
         // The walk's cell's bit in its block's mask, kept as the walk steps.
@@ -239,7 +239,7 @@ impl Level {
                 Some(cells) => cells,
                 None => {
                     let b = c.map(|v| v >> BLOCK_SHIFT);
-                    match self.enter_block(c, b, block_key(b), &mut region) {
+                    match self.enter_block(c, b, &mut region) {
                         Ok(cells) => {
                             bit = cell_bit(c);
                             *block.insert(cells)
@@ -268,20 +268,19 @@ impl Level {
         }
     }
 
-    /// The occupied block `key` (at block coordinates `b`) the walk enters
-    /// at cell `c`, or the empty cube around it to cross in one step. Empty
-    /// space at three scales: the empty groups around `c`'s in the level's
-    /// proximity cloud, a region (4×4×4 blocks) with no occupied block, and
-    /// an empty block of an occupied region, alone or with the aligned cube
-    /// of 2×2×2 blocks around it, the last two read from the region's mask
-    /// without probing the block table.
+    /// The occupied block at block coordinates `b` the walk enters at cell
+    /// `c`, or the empty cube around it to cross in one step. Empty space at
+    /// three scales: the empty groups around `c`'s in the level's proximity
+    /// cloud, a region (4×4×4 blocks) with no occupied block, and an empty
+    /// block of an occupied region, alone or with the aligned cube of 2×2×2
+    /// blocks around it, the last two read from the region's mask. An
+    /// occupied block is found from the region too, without another probe.
     #[inline(always)]
     fn enter_block(
         &self,
         c: [i64; 3],
         b: [i64; 3],
-        key: BlockKey,
-        region: &mut Cached<u64>,
+        region: &mut Cached<Region>,
     ) -> Result<Block, Empty> {
         let distance = self.occupancy.distance(c);
         if distance > 0 {
@@ -290,17 +289,18 @@ impl Level {
                 radius: i64::from(distance) - 1,
             });
         }
-        let blocks = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
-            self.regions.get(k)
+        let region = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
+            self.table.region(k)
         });
-        if blocks == 0 {
+        if region.blocks == 0 {
             return Err(Empty::group(REGION_SHIFT));
         }
-        if blocks >> cell_bit(b) & 1 == 0 {
-            let cube_empty = blocks & pair_cube(b) == 0;
+        let bit = cell_bit(b);
+        if !region.holds(bit) {
+            let cube_empty = region.blocks & pair_cube(b) == 0;
             return Err(Empty::group(BLOCK_SHIFT + u32::from(cube_empty)));
         }
-        Ok(self.table.get(key).unwrap_or_default())
+        Ok(self.table.block_in(region, bit))
     }
 
     /// [`Self::walk`] one cell at a time, probing the block table in each.
@@ -313,7 +313,7 @@ impl Level {
         mut visit: impl FnMut(&[u32]) -> f64,
     ) {
         loop {
-            if let Some(b) = self.table.get(block_key(c.map(|v| v >> BLOCK_SHIFT))) {
+            if let Some(b) = self.table.get(c.map(|v| v >> BLOCK_SHIFT)) {
                 if b.holds(cell_bit(c)) {
                     limit = limit.min(visit(self.candidates(b.cell_index(cell_bit(c)))));
                 }
