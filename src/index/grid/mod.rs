@@ -4,7 +4,8 @@
 //! level is a uniform grid over the bounding box of its own spheres, stored
 //! sparsely: a hash table of occupied regions of 4×4×4 blocks, whose masks
 //! lead to the occupied 4×4×4 blocks of cells ([`table`]), whose masks lead
-//! to the occupied cells, each a run in one flat array of sphere ids (CSR). A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
+//! to the occupied cells, each a run in one flat array of sphere ids (CSR).
+//! A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
 //! coarsest level first, and jumps over empty blocks in one step. Eye rays
 //! of a tile ([`packet`]) and shadow rays from a tile toward one light
 //! ([`shadow`]) walk each level together, slab by slab ([`slab`]).
@@ -58,7 +59,7 @@ pub struct Level {
     slack: f64,
     /// Which blocks and cells are occupied (see [`table`]).
     table: BlockTable,
-    /// Which groups of regions hold anything, densely.
+    /// How far empty space reaches around each group of blocks, densely.
     occupancy: occupancy::Occupancy,
     /// Occupied cell i holds `ids[cell_start[i]..cell_start[i + 1]]`.
     cell_start: Vec<u32>,

@@ -4,13 +4,13 @@
 //! Below it, a region's mask says which of its 4×4×4 blocks are occupied,
 //! and a block's mask which of its cells (see [`super::table`]). Regions
 //! are found in a hash table, and a probe for an absent key walks its run
-//! of slots to an empty one, in memory nothing else touches. Rays between clumps ask
-//! mostly for absent regions, so the level keeps a dense array over its
-//! whole box, one byte per group of `2^shift` cells a side (a block, or a
-//! cube of blocks where the box is large), small enough to stay in cache,
-//! the way the upper nodes of a VDB tree answer for the space below them
-//! (Museth 2013, "VDB: High-Resolution Sparse Volumes with Dynamic
-//! Topology").
+//! of slots to an empty one, in memory nothing else touches. Rays between
+//! clumps ask mostly for absent regions, so the level keeps a dense array
+//! over its whole box, one byte per group of `2^shift` cells a side (a
+//! block, or a cube of blocks where the box is large), small enough to stay
+//! in cache, the way the upper nodes of a VDB tree answer for the space
+//! below them (Museth 2013, "VDB: High-Resolution Sparse Volumes with
+//! Dynamic Topology").
 //!
 //! The byte is a proximity cloud (Cohen & Sheffer 1994, "Proximity clouds —
 //! an acceleration technique for 3D grid traversal"): 0 for a group that may
