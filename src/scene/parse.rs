@@ -834,6 +834,10 @@ impl SceneBuilder {
         );
     }
 
+    /// Folds line `line`'s directive. A chunk's spheres come by the run
+    /// instead ([`Self::count_spheres`], then [`Self::append_spheres`] once
+    /// their piece is folded); one given here joins the scene at once, so
+    /// it must not come while a piece's runs wait to be appended.
     fn apply(&mut self, line: usize, directive: Directive) -> Result<(), SceneError> {
         match directive {
             Directive::Blank => Ok(()),
