@@ -27,3 +27,14 @@ impl<R: Real> Ray<R> {
         self.origin + self.dir * t
     }
 }
+
+/// The low and high corners of the box around `points`, in f64 (for none,
+/// +∞ and −∞).
+pub fn bounding_box<R: Real>(points: &[V3<R>]) -> (glam::DVec3, glam::DVec3) {
+    use glam::DVec3;
+    points
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
+        })
+}

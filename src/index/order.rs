@@ -7,17 +7,13 @@
 //! box, every run of 16 or 64 lies in a compact patch of space, and the rays
 //! from it toward the light are a narrow fan.
 
-use crate::geometry::{Real, Vec3Ops, V3};
+use crate::geometry::{bounding_box, Real, Vec3Ops, V3};
 use glam::DVec3;
 
 /// The positions of `points` along a Morton curve over their bounding box
 /// (ten bits per axis): a permutation of `0..points.len()`.
 pub fn compact_order<R: Real>(points: &[V3<R>]) -> Vec<usize> {
-    let (lo, hi) = points
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
-        });
+    let (lo, hi) = bounding_box::<R>(points);
     let scale = 1023.0 / (hi - lo).max_element().max(f64::MIN_POSITIVE);
     let key = |p: &V3<R>| {
         let q = ((p.to_dvec3() - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(1023.0));

@@ -38,7 +38,7 @@ use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
 use super::{Level, Mailbox, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
-use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
+use crate::geometry::{bounding_box, Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::Answered;
 use glam::DVec3;
 
@@ -175,11 +175,7 @@ fn may_fan_out_little<R: Real>(origins: &[V3<R>], coarsest_cell: Option<f64>) ->
     let Some(cell) = coarsest_cell else {
         return true;
     };
-    let (lo, hi) = origins
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.to_dvec3()), hi.max(p.to_dvec3()))
-        });
+    let (lo, hi) = bounding_box::<R>(origins);
     let mut sides = ((hi - lo) / cell).to_array();
     sides.sort_by(f64::total_cmp);
     (sides[1] + 1.0) * (sides[2] + 1.0) <= WIDEST_CELLS_PER_RAY * origins.len() as f64

@@ -83,6 +83,13 @@ const SPANS: [[[u64; 4]; 4]; 3] = {
     spans
 };
 
+/// How many bits of `mask` lie below bit `bit`: an occupied member's place
+/// among its group's occupied members.
+#[inline(always)]
+fn set_below(mask: u64, bit: u32) -> usize {
+    (mask & ((1u64 << bit) - 1)).count_ones() as usize
+}
+
 /// An occupied block: which of its cells are occupied, and where they start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Block {
@@ -94,8 +101,7 @@ impl Block {
     /// The CSR index of the occupied cell with bit `bit`.
     #[inline(always)]
     pub fn cell_index(&self, bit: u32) -> usize {
-        let below = self.occupied & ((1u64 << bit) - 1);
-        self.first_cell as usize + below.count_ones() as usize
+        self.first_cell as usize + set_below(self.occupied, bit)
     }
 
     #[inline(always)]
@@ -168,8 +174,7 @@ impl BlockTable {
     /// The block with bit `bit` in `region`, which must hold it.
     #[inline(always)]
     pub fn block_in(&self, region: Region, bit: u32) -> Block {
-        let below = region.blocks & ((1u64 << bit) - 1);
-        self.blocks[region.first_block as usize + below.count_ones() as usize]
+        self.blocks[region.first_block as usize + set_below(region.blocks, bit)]
     }
 
     /// The occupied block at block coordinates `b`.
