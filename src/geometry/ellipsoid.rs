@@ -345,6 +345,19 @@ fn line_clearly_misses<R: Real>(a: R, b: R, f_squared: R) -> bool {
     distance > bound && distance < R::infinity()
 }
 
+/// Whether the ray starts outside the unit sphere (`f·f > 1`) and moves
+/// away from its centre (`b = f·e > 0`) while only t ≥ 0 is wanted: then
+/// [`Ellipsoid::roots`] finds both roots negative whatever the rounding, so
+/// the robust test is certain to answer none. Its `c = f·f − 1` is positive
+/// and `q = −(b + √disc)` negative, so `c/q ≤ −0` and `q/a < 0` (−∞ for an
+/// `a` that underflowed), and neither exceeds a `t_min ≥ 0`. The sphere a
+/// shadow or reflected ray leaves from is such a candidate, in the first
+/// cell the ray's walk visits.
+#[inline(always)]
+fn leaves_from_outside<R: Real>(b: R, f_squared: R, t_min: R) -> bool {
+    f_squared > R::one() && b > R::zero() && t_min >= R::zero()
+}
+
 /// The nearest of two roots (nearer first) in the open interval (t_min, t_max).
 #[inline(always)]
 fn first_in<R: Real>(near: R, far: R, t_min: R, t_max: R) -> Option<R> {
@@ -383,7 +396,7 @@ impl<R: Real> UnitSphereFrame<R> {
         }
         let e = ray.dir * self.inv_scale;
         let (a, b) = (e.dot(e), f.dot(e));
-        if line_clearly_misses(a, b, f_squared) {
+        if line_clearly_misses(a, b, f_squared) || leaves_from_outside(b, f_squared, t_min) {
             return None;
         }
         let (near, far, _) = Ellipsoid::roots(&LocalRay::new(f, e, a, b))?;
@@ -555,6 +568,77 @@ mod tests {
             fired * 10 > beyond_margin * 9,
             "the filter fired on {fired} of {beyond_margin} lines beyond its margin"
         );
+    }
+
+    /// Rays leaving ellipsoids at random extreme scales and positions, from
+    /// just outside the surface (a spawned ray's clearance) to 8192 radii
+    /// away, in any direction: whenever the early-out fires, the robust test
+    /// finds no root in (t_min, t_max) for t_min = 0 or above, and it fires
+    /// on lines the miss filter lets pass.
+    fn leaving_from_outside_never_skips_a_hit<R: Real>() {
+        let mut rng = crate::rng::Rng::new(0x1ea7_0075);
+        let (mut fired, mut near_lines) = (0u32, 0u32);
+        for _ in 0..200_000 {
+            let size = 10f64.powf(rng.range(-6.0, 6.0));
+            let centre = unit_vector(&mut rng) * size * 10f64.powf(rng.range(-3.0, 3.0));
+            let scale = DVec3::new(
+                size * 10f64.powf(rng.range(-1.0, 1.0)),
+                size * 10f64.powf(rng.range(-1.0, 1.0)),
+                size * 10f64.powf(rng.range(-1.0, 1.0)),
+            );
+            let out = unit_vector(&mut rng);
+            let from = out * (1.0 + 10f64.powf(rng.range(-7.0, 3.9)));
+            // Half of them away from the centre in the unit frame (a positive
+            // part along `out`), half in any direction, hits among them.
+            let lean = if rng.range(0.0, 1.0) < 0.5 {
+                10f64.powf(rng.range(-4.0, 0.0))
+            } else {
+                0.0
+            };
+            let local_dir = (out * lean + unit_vector(&mut rng)).normalize();
+            let origin = centre + from * scale;
+            let dir = (local_dir * scale).normalize();
+            let frame =
+                Ellipsoid::<R>::new(V3::<R>::from_dvec3(centre), V3::<R>::from_dvec3(scale))
+                    .frame();
+            let ray = Ray::new(V3::<R>::from_dvec3(origin), V3::<R>::from_dvec3(dir));
+            if frame.is_far(&ray) {
+                continue;
+            }
+            let LocalRay { f, e, a, b, .. } = frame.local(&ray);
+            let f_squared = f.dot(f);
+            let t_min = if rng.range(0.0, 1.0) < 0.5 {
+                R::zero()
+            } else {
+                R::from_f64(rng.range(0.0, 10.0))
+            };
+            if !leaves_from_outside(b, f_squared, t_min) {
+                continue;
+            }
+            let roots = Ellipsoid::roots(&LocalRay::new(f, e, a, b));
+            let found = roots.and_then(|(near, far, _)| first_in(near, far, t_min, R::infinity()));
+            assert_eq!(
+                found, None,
+                "skipped a hit: centre {centre}, scale {scale}, origin {origin}, dir {dir}"
+            );
+            fired += 1;
+            near_lines += u32::from(!line_clearly_misses(a, b, f_squared));
+        }
+        assert!(fired > 100_000, "the early-out fired {fired} times");
+        assert!(
+            near_lines > 20_000,
+            "only {near_lines} lines passed the miss filter"
+        );
+    }
+
+    #[test]
+    fn leaving_from_outside_never_skips_a_hit_in_f32() {
+        leaving_from_outside_never_skips_a_hit::<f32>();
+    }
+
+    #[test]
+    fn leaving_from_outside_never_skips_a_hit_in_f64() {
+        leaving_from_outside_never_skips_a_hit::<f64>();
     }
 
     fn unit_vector(rng: &mut crate::rng::Rng) -> DVec3 {
