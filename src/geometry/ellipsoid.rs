@@ -535,13 +535,7 @@ mod tests {
         let mut rng = crate::rng::Rng::new(0x5eed_f11e);
         let (mut fired, mut beyond_margin, mut hits) = (0u32, 0u32, 0u32);
         for _ in 0..200_000 {
-            let size = 10f64.powf(rng.range(-6.0, 6.0));
-            let centre = unit_vector(&mut rng) * size * 10f64.powf(rng.range(-3.0, 3.0));
-            let scale = DVec3::new(
-                size * 10f64.powf(rng.range(-1.0, 1.0)),
-                size * 10f64.powf(rng.range(-1.0, 1.0)),
-                size * 10f64.powf(rng.range(-1.0, 1.0)),
-            );
+            let (centre, scale) = random_ellipsoid(&mut rng);
             let from = unit_vector(&mut rng) * 10f64.powf(rng.range(0.18, 3.9));
             let pass = unit_vector(&mut rng) * rng.range(0.9, 1.6);
             let origin = centre + from * scale;
@@ -579,13 +573,7 @@ mod tests {
         let mut rng = crate::rng::Rng::new(0x1ea7_0075);
         let (mut fired, mut near_lines) = (0u32, 0u32);
         for _ in 0..200_000 {
-            let size = 10f64.powf(rng.range(-6.0, 6.0));
-            let centre = unit_vector(&mut rng) * size * 10f64.powf(rng.range(-3.0, 3.0));
-            let scale = DVec3::new(
-                size * 10f64.powf(rng.range(-1.0, 1.0)),
-                size * 10f64.powf(rng.range(-1.0, 1.0)),
-                size * 10f64.powf(rng.range(-1.0, 1.0)),
-            );
+            let (centre, scale) = random_ellipsoid(&mut rng);
             let out = unit_vector(&mut rng);
             let from = out * (1.0 + 10f64.powf(rng.range(-7.0, 3.9)));
             // Half of them away from the centre in the unit frame (a positive
@@ -639,6 +627,19 @@ mod tests {
     #[test]
     fn leaving_from_outside_never_skips_a_hit_in_f64() {
         leaving_from_outside_never_skips_a_hit::<f64>();
+    }
+
+    /// The centre and scale of an ellipsoid of size 10^[−6, 6] (axes up to
+    /// 100:1), up to 10³ sizes from the origin.
+    fn random_ellipsoid(rng: &mut crate::rng::Rng) -> (DVec3, DVec3) {
+        let size = 10f64.powf(rng.range(-6.0, 6.0));
+        let centre = unit_vector(rng) * size * 10f64.powf(rng.range(-3.0, 3.0));
+        let scale = DVec3::new(
+            size * 10f64.powf(rng.range(-1.0, 1.0)),
+            size * 10f64.powf(rng.range(-1.0, 1.0)),
+            size * 10f64.powf(rng.range(-1.0, 1.0)),
+        );
+        (centre, scale)
     }
 
     fn unit_vector(rng: &mut crate::rng::Rng) -> DVec3 {
