@@ -351,8 +351,8 @@ fn line_clearly_misses<R: Real>(a: R, b: R, f_squared: R) -> bool {
 /// the robust test is certain to answer none. Its `c = f·f − 1` is positive
 /// and `q = −(b + √disc)` negative, so `c/q ≤ −0` and `q/a < 0` (−∞ for an
 /// `a` that underflowed), and neither exceeds a `t_min ≥ 0`. The sphere a
-/// shadow or reflected ray leaves from is such a candidate, in the first
-/// cell the ray's walk visits.
+/// shadow or reflected ray is spawned from is such a case, and the miss
+/// filter cannot reject it: the line passes through it.
 #[inline(always)]
 fn leaves_from_outside<R: Real>(b: R, f_squared: R, t_min: R) -> bool {
     f_squared > R::one() && b > R::zero() && t_min >= R::zero()
@@ -593,8 +593,8 @@ mod tests {
             if frame.is_far(&ray) {
                 continue;
             }
-            let LocalRay { f, e, a, b, .. } = frame.local(&ray);
-            let f_squared = f.dot(f);
+            let local = frame.local(&ray);
+            let (f_squared, a, b) = (local.f.dot(local.f), local.a, local.b);
             let t_min = if rng.range(0.0, 1.0) < 0.5 {
                 R::zero()
             } else {
@@ -603,7 +603,7 @@ mod tests {
             if !leaves_from_outside(b, f_squared, t_min) {
                 continue;
             }
-            let roots = Ellipsoid::roots(&LocalRay::new(f, e, a, b));
+            let roots = Ellipsoid::roots(&local);
             let found = roots.and_then(|(near, far, _)| first_in(near, far, t_min, R::infinity()));
             assert_eq!(
                 found, None,

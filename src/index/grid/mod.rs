@@ -91,8 +91,7 @@ impl Level {
 ///
 /// 32 bytes in f32, aligned to them so that none straddles two cache lines:
 /// the allocator puts a large array 16 bytes past a line's start, where every
-/// other copy would take two misses (simulated caches, uniform 10⁶ at 512²:
-/// 12% fewer first-level read misses in the render).
+/// other copy would cost two misses (see docs/index.md).
 #[derive(Clone, Copy, Debug)]
 #[repr(align(32))]
 struct Candidate<R: Real> {
