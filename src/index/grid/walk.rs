@@ -92,6 +92,13 @@ impl Axes {
         }
     }
 
+    /// Whether a step along `axis` that arrived at cell index `c` crossed
+    /// into a new block.
+    #[inline(always)]
+    fn entered_block(&self, axis: usize, c: i64) -> bool {
+        c & (BLOCK_SIDE - 1) == self.block_entry[axis]
+    }
+
     /// The t at which the ray leaves cell `c` across a plane of `axis`
     /// (+∞ if it never does). The plane between cells `i − 1` and `i` lies
     /// at `origin + i·cell`, crossed at `(origin − o)/d + i·(cell/d)`: two
@@ -274,7 +281,7 @@ impl Level {
             let Some(a) = self.step(&axes, &mut c, &mut t_next, limit) else {
                 return;
             };
-            if c[a] & (BLOCK_SIDE - 1) == axes.block_entry[a] {
+            if axes.entered_block(a, c[a]) {
                 block = None;
             } else {
                 bit = bit.wrapping_add_signed(axes.bit_step[a]);
@@ -378,7 +385,7 @@ impl Level {
             let Some(a) = self.step(axes, c, t_next, limit) else {
                 return false;
             };
-            if c[a] & (BLOCK_SIDE - 1) == axes.block_entry[a] {
+            if axes.entered_block(a, c[a]) {
                 return true;
             }
         }
