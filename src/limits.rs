@@ -92,6 +92,14 @@ pub const HEALTH_RESERVE_CONNECTIONS: usize = 16;
 /// How long a connection in the reserve may take to send its request head,
 /// from its accept: a monitor sends at once, and the reserve must turn over.
 pub const RESERVE_HEAD_TIMEOUT_MS: u64 = 250;
+/// How long a connection the server ends after an answer (a refused body,
+/// a bad head) goes on reading what the client still sends before it
+/// closes, so that the client can finish sending and read the answer to its
+/// end instead of meeting a reset: closed with bytes unread, a connection
+/// is reset. Ends sooner when the client closes its side.
+pub const LINGER_MS: u64 = 1_000;
+/// Most bytes read and thrown away while lingering ([`LINGER_MS`]).
+pub const LINGER_BYTES: usize = 8 * 1024 * 1024;
 /// Renders running at once on the render pool. Each render is itself
 /// parallel, so more slots do not add threads; they cover the gap between a
 /// render and the next in its slot (the next waiter woken, its scene parsed),

@@ -697,6 +697,31 @@ fn stopping_closes_waiting_connections_at_once() {
     assert!(idle.closed() && halfway.closed());
 }
 
+/// A client that goes on sending a body the server refused from its head
+/// can finish sending and reads the whole refusal and then the
+/// connection's end: the server shuts its sending side and reads what
+/// still comes for a while before it closes. (Closed with bytes unread, a
+/// connection is reset: the client's next write fails, and some systems
+/// discard the answer it has not read yet.)
+#[test]
+fn a_refused_body_still_being_sent_gets_its_answer_and_a_clean_close() {
+    let server = start(ServiceConfig {
+        max_body: 1000,
+        ..ServiceConfig::default()
+    });
+    let mut client = Client::connect(server.addr());
+    let body = vec![b'#'; 256 * 1024];
+    client.send(b"POST /render HTTP/1.1\r\nHost: t\r\nContent-Length: 5000000\r\n\r\n");
+    client.send(&body);
+    assert_eq!(client.read_reply(false).status, 413);
+    // Once answered, the server reads on: were the connection reset
+    // instead, this write or the close after it would fail (a broken pipe,
+    // as curl reports it).
+    client.send(&body);
+    client.half_close();
+    assert!(client.closed());
+}
+
 #[test]
 fn bodies_past_the_memory_budget_get_503_and_the_connection_stays_usable() {
     let server = start(ServiceConfig {

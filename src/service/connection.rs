@@ -34,7 +34,7 @@ pub fn serve(
     while registration.await_request() {
         let head = match conn.read_head(&timeouts) {
             Ok(head) => head,
-            Err(error) => return refuse(state, &conn, error),
+            Err(error) => return refuse(state, &mut conn, error),
         };
         let started = Instant::now();
         if !answer(state, registration, &mut conn, &head, started) {
@@ -72,7 +72,11 @@ pub fn serve_reserve(
                 handler: "connection",
                 started: Instant::now(),
             };
-            let _ = write_response(state, &conn, &exchange, &response, false, false);
+            if write_response(state, &conn, &exchange, &response, false, false).is_ok()
+                && registration.await_close()
+            {
+                conn.linger();
+            }
             return;
         }
     };
@@ -95,12 +99,16 @@ pub fn serve_reserve(
     let response =
         answered.unwrap_or_else(|| ApiError::from(refusal).into_response(head.accepts_json()));
     let head_only = head.method == "HEAD";
-    let _ = write_response(state, &conn, &exchange, &response, head_only, false);
+    if write_response(state, &conn, &exchange, &response, head_only, false).is_ok()
+        && registration.await_close()
+    {
+        conn.linger();
+    }
 }
 
 /// No request could be read: say why, if there is anyone to tell, in plain
 /// text (there are no headers to ask for JSON), and close.
-fn refuse(state: &State, conn: &Connection, error: NoRequest) {
+fn refuse(state: &State, conn: &mut Connection, error: NoRequest) {
     let kind = match error {
         NoRequest::Closed | NoRequest::Io => return,
         NoRequest::Stalled => ApiErrorKind::RequestTimeout { what: "request" },
@@ -115,7 +123,10 @@ fn refuse(state: &State, conn: &Connection, error: NoRequest) {
         handler: "other",
         started: Instant::now(),
     };
-    let _ = write_response(state, conn, &exchange, &response, false, false);
+    // Still waiting for a request, as far as a stop knows: it ends the linger.
+    if write_response(state, conn, &exchange, &response, false, false).is_ok() {
+        conn.linger();
+    }
 }
 
 /// Writes a response within the write timeout, which bounds the whole
@@ -171,6 +182,9 @@ fn answer(
             let keep = keep && head.wants_keep_alive() && !state.stopping() && !state.draining();
             let head_only = head.method == "HEAD";
             let written = write_response(state, conn, &exchange, &response, head_only, keep);
+            if written.is_ok() && !keep && registration.await_close() {
+                conn.linger();
+            }
             written.is_ok() && keep
         }
     }

@@ -8,7 +8,7 @@ use crate::limits;
 use std::cell::Cell;
 use std::fmt::Write as _;
 use std::io::{self, IoSlice, Read, Write};
-use std::net::TcpStream;
+use std::net::{Shutdown, TcpStream};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -323,6 +323,28 @@ impl Connection {
                 Ok(n) => return Ok(n),
                 Err(e) if is_timeout(&e) => {}
                 Err(_) => return Err(NoRequest::Io),
+            }
+        }
+    }
+
+    /// Ends a connection the server closes after an answer: shuts the
+    /// sending side (the client sees the answer end), then reads and throws
+    /// away what the client still sends until it closes its side, or for
+    /// [`limits::LINGER_MS`] or [`limits::LINGER_BYTES`], whichever comes
+    /// first. Closed with bytes unread, a connection is reset: the client's
+    /// next write fails, and some systems discard the answer it has not
+    /// read yet.
+    pub fn linger(&mut self) {
+        if self.stream.shutdown(Shutdown::Write).is_err() {
+            return;
+        }
+        let deadline = Instant::now() + Duration::from_millis(limits::LINGER_MS);
+        let mut chunk = [0u8; READ_CHUNK];
+        let mut left = limits::LINGER_BYTES;
+        while left > 0 {
+            match self.read_before(deadline, &mut chunk) {
+                Ok(n) => left = left.saturating_sub(n),
+                Err(_) => return,
             }
         }
     }

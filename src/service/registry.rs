@@ -179,6 +179,14 @@ impl Registration<'_> {
         self.set_receiving(true)
     }
 
+    /// Marks the connection as waiting for its client to close it after
+    /// its last answer (`Connection::linger`): a stop wakes it, as it does
+    /// one waiting for a request. `false` when the server is stopping: the
+    /// connection should close at once.
+    pub fn await_close(&self) -> bool {
+        self.set_receiving(true)
+    }
+
     /// Marks the request as received: from now on a stop lets it finish.
     pub fn request_received(&self) {
         self.set_receiving(false);
