@@ -127,6 +127,10 @@ pub const DEFAULT_MEMORY_BUDGET: u64 = 1024 * 1024 * 1024;
 /// for the pairs its build sorts (the 10^7-sphere scene peaked at some 240
 /// bytes a sphere beyond its text).
 pub const INDEX_BUILD_BYTES_PER_SPHERE: usize = 256;
+/// Bytes per sphere the grid's light buffers may hold, all lights together
+/// (about 30 a light on the benchmark families at 10^6 spheres, so three or
+/// four lights get one); building one takes about 110 more for a while.
+pub const LIGHT_BUFFER_BYTES_PER_SPHERE: usize = 128;
 /// Largest request head (request line and headers) in bytes; larger is 431.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 /// Most header lines in one request; more is 431.

@@ -15,7 +15,7 @@ use std::fmt;
 /// ```
 /// use voxtrace::names::Named;
 /// use voxtrace::render::IndexKind;
-/// assert_eq!(IndexKind::NAMES, ["grid", "brute"]);
+/// assert_eq!(IndexKind::NAMES, ["grid", "walk", "brute"]);
 /// assert_eq!("brute".parse::<IndexKind>(), Ok(IndexKind::Brute));
 /// assert_eq!(IndexKind::Grid.to_string(), "grid");
 /// assert!("octree".parse::<IndexKind>().is_err());
@@ -98,7 +98,7 @@ macro_rules! named {
     };
 }
 
-named!(IndexKind, "index", { Grid => "grid", Brute => "brute" });
+named!(IndexKind, "index", { Grid => "grid", Walk => "walk", Brute => "brute" });
 named!(SpecularModel, "specular model", { Phong => "phong", Blinn => "blinn" });
 named!(Rules, "rule set", { Default => "default", Ucla => "ucla" });
 named!(Distribution, "distribution", {
@@ -141,7 +141,7 @@ mod tests {
         let e = "fast".parse::<IndexKind>().unwrap_err();
         assert_eq!(
             e.to_string(),
-            "unknown index \"fast\": expected one of grid, brute"
+            "unknown index \"fast\": expected one of grid, walk, brute"
         );
     }
 }

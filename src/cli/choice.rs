@@ -35,7 +35,8 @@ mod tests {
             .err()
             .unwrap();
         assert!(
-            e.to_string().contains("[possible values: grid, brute]"),
+            e.to_string()
+                .contains("[possible values: grid, walk, brute]"),
             "{e}"
         );
     }

@@ -13,6 +13,7 @@ use crate::output::Image;
 use crate::render::{
     render_scene, IndexKind, Region, RenderOptions, Rendered, Rules, SpecularModel,
 };
+use crate::scene::Scene;
 use crate::threads::Threads;
 use std::io::Write;
 use std::path::PathBuf;
@@ -95,7 +96,10 @@ fn rules_help(rules: Rules) -> &'static str {
 
 fn index_help(index: IndexKind) -> &'static str {
     match index {
-        IndexKind::Grid => "The multi-resolution voxel hash grid",
+        IndexKind::Grid => {
+            "The multi-resolution voxel hash grid, with a light buffer per light for shadow rays"
+        }
+        IndexKind::Walk => "The grid alone: shadow rays walk it too (for measuring)",
         IndexKind::Brute => "Test every sphere (the exactness oracle)",
     }
 }
@@ -150,7 +154,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     progress.finish();
     write_image(&rendered.image, &destination)?;
     if args.stats {
-        print_stats(&rendered, parse_time, pool.current_num_threads());
+        print_stats(&rendered, &scene, parse_time, pool.current_num_threads());
     }
     if !args.quiet {
         let image = &rendered.image;
@@ -184,7 +188,7 @@ pub(super) fn write_image(image: &Image, destination: &Destination) -> Result<()
     })
 }
 
-fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {
+fn print_stats(rendered: &Rendered, scene: &Scene, parse_time: Duration, threads: usize) {
     let s = &rendered.stats;
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     eprintln!("parse   {:10.2} ms", ms(parse_time));
@@ -203,6 +207,12 @@ fn print_stats(rendered: &Rendered, parse_time: Duration, threads: usize) {
     eprintln!(
         "packets eye {}  shadow {}  (rays handed to the index together: a tile's eye rays, its shadow rays toward one light, walked together where they pay)",
         p.eye, p.shadow
+    );
+    eprintln!(
+        "lights  {} of {} with a light buffer ({:.1} MB): their shadow rays test its lists, the others' walk the grid",
+        s.light_buffers.lights,
+        scene.lights.len(),
+        s.light_buffers.bytes as f64 / 1e6
     );
     eprintln!("speed   {:10.2} Mrays/s", s.mrays_per_second());
 }

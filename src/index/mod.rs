@@ -45,6 +45,14 @@ impl<R: Real> Hit<R> {
     }
 }
 
+/// The light buffers an index keeps for shadow rays toward point lights.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LightBuffers {
+    /// Lights with a buffer.
+    pub lights: usize,
+    pub bytes: usize,
+}
+
 pub trait SphereIndex<R: Real>: Sync {
     /// The nearest hit with t in the open interval (t_min, t_max).
     fn closest_hit(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>>;
@@ -71,6 +79,16 @@ pub trait SphereIndex<R: Real>: Sync {
     /// `o = origins[i]`, blocked by a hit with t in (0, 1). Rays from
     /// neighbouring points should be adjacent ([`compact_order`] lists them
     /// so): an index may trace them together.
+    /// [`Self::any_hit`] of the one shadow ray `o + t·(light − o)`, t in
+    /// (0, 1), with `o = origin`.
+    fn any_hit_toward(&self, light: V3<R>, origin: V3<R>) -> bool {
+        self.any_hit(&Ray::new(origin, light - origin), R::one())
+    }
+    /// The light buffers the index answers [`Self::any_hit_toward`] and
+    /// [`Self::any_hits_toward`] from, where it keeps any.
+    fn light_buffers(&self) -> LightBuffers {
+        LightBuffers::default()
+    }
     fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) -> Answered {
         for (&o, blocked) in origins.iter().zip(out) {
             *blocked = self.any_hit(&Ray::new(o, light - o), R::one());

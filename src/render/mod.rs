@@ -13,7 +13,7 @@ pub use region::{Region, RegionError};
 pub use rules::Rules;
 
 use crate::geometry::{Ellipsoid, Ray, Real, SurfacePoint, Vec3Ops, V3};
-use crate::index::{Answered, BruteForce, SphereIndex, VoxelHashGrid};
+use crate::index::{Answered, BruteForce, LightBuffers, SphereIndex, VoxelHashGrid};
 use crate::limits;
 use crate::output::Image;
 use crate::scene::{Dialect, Scene};
@@ -38,9 +38,13 @@ pub enum SpecularModel {
 /// Which candidate search to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum IndexKind {
-    /// The multi-resolution voxel hash grid.
+    /// The multi-resolution voxel hash grid, with a light buffer per light
+    /// (as many as [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`] allows)
+    /// that answers shadow rays toward it.
     #[default]
     Grid,
+    /// The grid alone: shadow rays walk it too (for measuring the buffers).
+    Walk,
     /// Test every sphere (the exactness oracle).
     Brute,
 }
@@ -127,6 +131,8 @@ pub struct RenderStats {
     pub build_time: Duration,
     /// Time to trace every pixel.
     pub render_time: Duration,
+    /// The index's light buffers (counted in `build_time`).
+    pub light_buffers: LightBuffers,
 }
 
 impl RenderStats {
@@ -188,7 +194,8 @@ pub fn render_in<R: Real>(
     check_options(options)?;
     let started = Instant::now();
     let shapes = shapes_of::<R>(scene);
-    let index = build_index(&shapes, options.index);
+    let lights = light_positions::<R>(scene);
+    let index = build_index(&shapes, &lights, options.index);
     render_with(
         scene,
         &shapes,
@@ -209,14 +216,25 @@ fn shapes_of<R: Real>(scene: &Scene) -> Vec<Ellipsoid<R>> {
         .collect()
 }
 
-/// The index `kind` names, built over `shapes`. One dynamic call per ray
-/// is noise next to the walk and the sphere tests behind it.
-pub fn build_index<R: Real>(
-    shapes: &[Ellipsoid<R>],
+/// The scene's light positions in the precision `R`, as shading casts
+/// shadow rays toward them.
+fn light_positions<R: Real>(scene: &Scene) -> Vec<V3<R>> {
+    (scene.lights.iter())
+        .map(|l| V3::<R>::from_dvec3(l.position))
+        .collect()
+}
+
+/// The index `kind` names, built over `shapes`, for shadow rays toward
+/// `lights`. One dynamic call per ray is noise next to the walk and the
+/// sphere tests behind it.
+pub fn build_index<'s, R: Real>(
+    shapes: &'s [Ellipsoid<R>],
+    lights: &[V3<R>],
     kind: IndexKind,
-) -> Box<dyn SphereIndex<R> + '_> {
+) -> Box<dyn SphereIndex<R> + 's> {
     match kind {
-        IndexKind::Grid => Box::new(VoxelHashGrid::new(shapes)),
+        IndexKind::Grid => Box::new(VoxelHashGrid::new(shapes).with_lights(lights)),
+        IndexKind::Walk => Box::new(VoxelHashGrid::new(shapes)),
         IndexKind::Brute => Box::new(BruteForce::new(shapes)),
     }
 }
@@ -233,7 +251,7 @@ pub fn eye_hit_map<R: Real>(scene: &Scene, kind: IndexKind) -> Vec<Option<u32>> 
 /// it), for checking that translating a whole scene leaves the map alone.
 pub fn eye_hit_map_from<R: Real>(scene: &Scene, kind: IndexKind, eye: DVec3) -> Vec<Option<u32>> {
     let shapes = shapes_of::<R>(scene);
-    let index = build_index(&shapes, kind);
+    let index = build_index(&shapes, &[], kind);
     let sampler = PixelSampler::new(&scene.camera, 1);
     let (width, height) = (scene.camera.width, scene.camera.height);
     let origin = V3::<R>::from_dvec3(eye);
@@ -350,6 +368,7 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
             in_packets: totals.in_packets,
             build_time,
             render_time: started.elapsed(),
+            light_buffers: index.light_buffers(),
         },
     })
 }
@@ -628,7 +647,7 @@ mod tests {
                     ..RenderOptions::default()
                 };
                 let shapes = shapes_of::<f32>(scene);
-                let index = build_index(&shapes, IndexKind::Grid);
+                let index = build_index(&shapes, &light_positions::<f32>(scene), IndexKind::Grid);
                 let render = |stop: &Stop| {
                     trace_all(
                         scene,

@@ -206,7 +206,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
                     .any_hits_toward(light, &origins[rays.clone()], &mut out[rays])
             } else {
                 let o = origins[rays.start];
-                out[rays.start] = self.index.any_hit(&Ray::new(o, light - o), R::one());
+                out[rays.start] = self.index.any_hit_toward(light, o);
                 Answered::All
             }
         });
@@ -353,8 +353,7 @@ impl<'a, R: Real, I: SphereIndex<R> + ?Sized> Tracer<'a, R, I> {
         counts.shadow += 1;
         let origin = spawn_origin(surface, light - surface.point);
         // t = 1 is the light itself; blockers beyond it do not count.
-        self.index
-            .any_hit(&Ray::new(origin, light - origin), R::one())
+        self.index.any_hit_toward(light, origin)
     }
 
     /// `max(0, R·V)` (Phong) or `max(0, N·H)` (Blinn).

@@ -568,7 +568,8 @@ fn charge_render(
 fn scene_bytes(scene: &Scene) -> u64 {
     let per_sphere = std::mem::size_of::<crate::scene::Sphere>()
         + std::mem::size_of::<crate::geometry::Ellipsoid<f32>>()
-        + limits::INDEX_BUILD_BYTES_PER_SPHERE;
+        + limits::INDEX_BUILD_BYTES_PER_SPHERE
+        + limits::LIGHT_BUFFER_BYTES_PER_SPHERE;
     let lights = scene.lights.len() * std::mem::size_of::<crate::scene::Light>();
     (scene.spheres.len() * per_sphere + lights) as u64
 }

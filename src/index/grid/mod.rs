@@ -17,6 +17,7 @@
 
 mod build;
 mod cone;
+mod light_buffer;
 mod occupancy;
 mod packet;
 mod shadow;
@@ -24,9 +25,10 @@ mod slab;
 mod table;
 mod walk;
 
-use super::{Answered, Hit, SphereIndex};
+use super::{Answered, Hit, LightBuffers, SphereIndex};
 use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
+use light_buffer::LightBuffer;
 pub use packet::RAYS as PACKET_RAYS;
 use rayon::prelude::*;
 use table::BlockTable;
@@ -114,6 +116,7 @@ pub struct VoxelHashGrid<R: Real> {
     empty_space: EmptySpace,
     /// Candidate tests one call for many rays may make ([`TestBudget`]).
     packet_tests: u64,
+    lights: Vec<LightBuffer<R>>,
 }
 
 /// The last sphere tested per slot: a sphere spanning several cells along a
@@ -232,7 +235,37 @@ impl<R: Real> VoxelHashGrid<R> {
             levels,
             empty_space: EmptySpace::default(),
             packet_tests: crate::limits::PACKET_TESTS,
+            lights: Vec::new(),
         }
+    }
+
+    /// The same grid with a light buffer for each of `lights`.
+    ///
+    /// Buffers are built light by light (each in parallel) while their
+    /// bytes stay within [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`];
+    /// shadow rays toward the other lights walk the grid. A light whose
+    /// buffer would be tested in full by too many rays gets none either.
+    pub fn with_lights(mut self, lights: &[V3<R>]) -> Self {
+        let budget = crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE * self.spheres.len();
+        let mut used = 0;
+        for &light in lights {
+            if self.light_buffer(light).is_some() {
+                continue;
+            }
+            let Some(buffer) = LightBuffer::new(&self.spheres, &self.short, light) else {
+                continue;
+            };
+            used += buffer.bytes();
+            if used > budget {
+                break;
+            }
+            self.lights.push(buffer);
+        }
+        self
+    }
+
+    fn light_buffer(&self, light: V3<R>) -> Option<&LightBuffer<R>> {
+        self.lights.iter().find(|b| b.light() == light)
     }
 
     /// The same grid, giving up on a call for many rays past `tests`
@@ -299,6 +332,21 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
     }
 
     fn any_hits_toward(&self, light: V3<R>, origins: &[V3<R>], out: &mut [bool]) -> Answered {
+        if let Some(buffer) = self.light_buffer(light) {
+            let mut budget = TestBudget::new(self.packet_tests);
+            for (&o, blocked) in origins.iter().zip(out.iter_mut()) {
+                *blocked = match buffer.blocked(&self.spheres, o, &mut budget) {
+                    Some(b) => b,
+                    None => self
+                        .blocker(&Ray::new(o, light - o), R::one(), &mut budget)
+                        .is_some(),
+                };
+                if budget.spent() {
+                    return Answered::GaveUp;
+                }
+            }
+            return Answered::All;
+        }
         let answered = self.packet_any_hits_toward(light, origins, out);
         if answered == Answered::GaveUp && self.every_sphere_fits(origins.len()) {
             for (&o, blocked) in origins.iter().zip(out) {
@@ -311,6 +359,19 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
 
     fn any_hit(&self, ray: &Ray<R>, t_max: R) -> bool {
         self.any_hit_spending(ray, t_max, &mut Uncounted)
+    }
+
+    fn light_buffers(&self) -> LightBuffers {
+        LightBuffers {
+            lights: self.lights.len(),
+            bytes: self.lights.iter().map(LightBuffer::bytes).sum(),
+        }
+    }
+
+    fn any_hit_toward(&self, light: V3<R>, origin: V3<R>) -> bool {
+        self.light_buffer(light)
+            .and_then(|b| b.blocked(&self.spheres, origin, &mut Uncounted))
+            .unwrap_or_else(|| self.any_hit(&Ray::new(origin, light - origin), R::one()))
     }
 }
 

@@ -1,0 +1,210 @@
+//! Light buffers: for each point light, the spheres seen from it in each
+//! direction, nearest first (Haines & Greenberg, "The Light Buffer: A
+//! Shadow-Testing Accelerator", 1986).
+//!
+//! A shadow ray toward a point light L ends at L, so whatever blocks it lies
+//! in the direction of its origin as seen from L, and nearer to L than the
+//! origin. Around each light a cube of six faces is cut into texels of
+//! direction; each texel lists the spheres whose bounding ball may meet a
+//! direction through it, ordered by how near to L the ball comes. A shadow
+//! ray looks up its texel and tests the list in that order until the balls
+//! lie farther from L than its origin: no walk, however far the light.
+//! Shadow rays from anywhere (eye hits, bounce hits) are answered alike, so
+//! incoherent ones cost no more than coherent ones.
+//!
+//! # Why it answers what brute force answers
+//! The test is the walk's own, of the ray as the renderer casts it
+//! (`o + t·d` with `d = fl(L − o)`, t in (0, 1)), so only the lists' cover
+//! matters. A sphere reports a hit at t only if `q = o + t·d` lies within
+//! its `bound` ρ of its centre C (the pad and slack of [`super::build`]).
+//! With `d = (L − o) + e`, `|e| ≤ u·|L − o|` (one rounding in the render's
+//! precision, u its unit roundoff), `q − L = w + t·e` with
+//! `w = (1 − t)·(o − L)`, so:
+//! - `|q − L| ≤ |o − L|·(1 + u)`: a sphere whose ball comes no nearer to L
+//!   than that cannot block, and a list stops at the first such sphere.
+//! - Where `|q − L| ≥ m`: `|t·e| ≤ ε·|w|` with `ε = u·D / (m − u·D)` for
+//!   every origin within D of L (farther ones go to the walk); with
+//!   `m = D / NEAR_DIVISOR` that is 64u / (1 − 64u), 2^-18 in f32. A face
+//!   coordinate `x_b / x_a` (`x_a ≥ |x| / √3` on the face of w) then moves
+//!   by at most `2√3·ε / (1 − √3·ε) < 2^-16` between w, which has the
+//!   origin's direction, and `q − L`; every sphere's rectangle is widened by
+//!   [`WIDEN`] = 2^-14, four times that.
+//! - Where `|q − L| < m`, the ball comes within m of L: such spheres are
+//!   tested by every ray ([`LightBuffer::always`]), as are the grid's short
+//!   list (a floor of radius 1000 would put every origin near the light) and
+//!   the few spheres that would cover too many texels.
+//!
+//! A sphere is listed on face (a, s) (the directions with `s·x_a ≥ |x_b|,
+//! |x_c|`) when its ball's box reaches `s·x_a ≥ m / 2`: a point q as above
+//! has `s·q_a ≥ |q − L|·(1/√3 − ε)/(1 + ε) > m / 2` on the face of its
+//! origin. Over the box's part with `s·x_a ≥ m / 2` the ratio
+//! `x_b / (s·x_a)` takes its extremes at the corners, so the rectangle of
+//! the corner ratios holds the face coordinates of every such q.
+//!
+//! A texel's list is cut at [`MOST_LISTED`] spheres, and the nearest
+//! distance of the first one left out is kept: a ray whose origin lies
+//! beyond it, and that no listed sphere blocks, goes to the walk. So a ray
+//! tests at most that many spheres here, whatever the scene.
+
+mod build;
+
+use super::{Candidate, Tests};
+use crate::geometry::{Ray, Real, Vec3Ops, V3};
+use glam::DVec3;
+
+/// How far a sphere's texel rectangle is widened, in face coordinates: four
+/// times the direction error of a shadow ray's points (module docs).
+const WIDEN: f64 = 1.0 / (1u64 << 14) as f64;
+/// `m = D / NEAR_DIVISOR`: spheres within m of the light are in every list.
+const NEAR_DIVISOR: f64 = 64.0;
+/// Texels a side of a tile (see [`Face::index`]).
+const TILE: usize = 8;
+/// Most spheres listed in one texel; past them a ray goes to the walk.
+const MOST_LISTED: usize = 48;
+
+/// One sphere in a list: its position in the grid's sphere array, and a
+/// distance its ball comes no nearer to the light than (rounded down).
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    sphere: u32,
+    nearest: f32,
+}
+
+/// The texels of one face of the cube around the light, over the part of
+/// the face its spheres' rectangles cover.
+#[derive(Clone, Copy, Debug, Default)]
+struct Face {
+    /// The low corner of texel (0, 0), in face coordinates.
+    lo: [f64; 2],
+    /// Texels per unit of face coordinate.
+    per_unit: f64,
+    /// Texels along each face coordinate, a multiple of [`TILE`] (0 for a
+    /// face with no sphere).
+    texels: [usize; 2],
+    /// The face's first texel in the buffer's texel numbering.
+    first: usize,
+}
+
+impl Face {
+    /// The texel `uv` lies in, None outside the face's texels.
+    #[inline(always)]
+    fn texel(&self, uv: [f64; 2]) -> Option<usize> {
+        let i = ((uv[0] - self.lo[0]) * self.per_unit).floor();
+        let j = ((uv[1] - self.lo[1]) * self.per_unit).floor();
+        let inside = i >= 0.0 && j >= 0.0;
+        let (i, j) = (i as usize, j as usize);
+        (inside && i < self.texels[0] && j < self.texels[1]).then(|| self.index(i, j))
+    }
+
+    /// Texel (i, j)'s place in the buffer's numbering: tile by tile of
+    /// [`TILE`]² texels, so that the texels of one sphere, and of spheres
+    /// near each other, lie together in memory.
+    #[inline(always)]
+    fn index(&self, i: usize, j: usize) -> usize {
+        let tiles_across = self.texels[0] / TILE;
+        let tile = (j / TILE) * tiles_across + i / TILE;
+        self.first + tile * TILE * TILE + (j % TILE) * TILE + i % TILE
+    }
+}
+
+/// The shadow rays toward one point light, answered from lists.
+pub(super) struct LightBuffer<R: Real> {
+    light: V3<R>,
+    light64: DVec3,
+    /// Origins farther from the light than this go to the walk.
+    farthest: f64,
+    /// Spheres every ray tests, nearest first.
+    always: Vec<Entry>,
+    faces: [Face; 6],
+    /// Texel k lists `entries[starts[k]..starts[k + 1]]`, nearest first.
+    starts: Vec<u32>,
+    entries: Vec<Entry>,
+    /// How near to the light the first sphere left out of texel k's list
+    /// comes (+∞ where none was).
+    complete_within: Vec<f32>,
+}
+
+/// The face a direction `x` from the light lies in (2·axis, plus 1 on the
+/// axis's negative side) and its coordinates there; None for zero.
+#[inline(always)]
+fn face_of(x: DVec3) -> Option<(usize, [f64; 2])> {
+    let ax = x.abs();
+    let a = if ax.x >= ax.y && ax.x >= ax.z {
+        0
+    } else if ax.y >= ax.z {
+        1
+    } else {
+        2
+    };
+    let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+    (ax[a] > 0.0).then(|| {
+        let face = 2 * a + usize::from(x[a] < 0.0);
+        (face, [x[b] / ax[a], x[c] / ax[a]])
+    })
+}
+
+impl<R: Real> LightBuffer<R> {
+    /// The light this buffer answers for.
+    pub(super) fn light(&self) -> V3<R> {
+        self.light
+    }
+
+    /// Bytes the buffer holds.
+    pub(super) fn bytes(&self) -> usize {
+        let entry = std::mem::size_of::<Entry>();
+        (self.always.capacity() + self.entries.capacity()) * entry
+            + 4 * (self.starts.capacity() + self.complete_within.capacity())
+    }
+
+    /// Whether a sphere blocks the shadow ray from `origin` to the light,
+    /// spending one of `budget` per test; None where the walk must say.
+    #[inline]
+    pub(super) fn blocked(
+        &self,
+        spheres: &[Candidate<R>],
+        origin: V3<R>,
+        budget: &mut impl Tests,
+    ) -> Option<bool> {
+        let x = origin.to_dvec3() - self.light64;
+        let distance = x.length();
+        // Also refuses NaN.
+        if distance.partial_cmp(&self.farthest) != Some(std::cmp::Ordering::Less) {
+            return None;
+        }
+        let (f, uv) = face_of(x)?;
+        // |o − L|·(1 + u) and the rounding of `distance`, with room.
+        let within = distance * (1.0 + 1.0 / (1u64 << 20) as f64);
+        let ray = Ray::new(origin, self.light - origin);
+        let mut blocks = |e: &Entry| {
+            budget.spend(1);
+            let frame = &spheres[e.sphere as usize].frame;
+            frame.intersect(&ray, R::zero(), R::one()).is_some()
+        };
+        // Nearest first: the first sphere beyond the origin ends the list.
+        let nearer = |e: &&Entry| f64::from(e.nearest) <= within;
+        if self.always.iter().take_while(nearer).any(&mut blocks) {
+            return Some(true);
+        }
+        let Some(k) = self.faces[f].texel(uv) else {
+            return Some(false);
+        };
+        let list = &self.entries[self.starts[k] as usize..self.starts[k + 1] as usize];
+        if list.iter().filter(nearer).any(blocks) {
+            return Some(true);
+        }
+        (f64::from(self.complete_within[k]) > within).then_some(false)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn faces_take_each_direction_once() {
+        assert_eq!(face_of(DVec3::new(2.0, 1.0, -1.0)), Some((0, [0.5, -0.5])));
+        assert_eq!(face_of(DVec3::new(0.0, -3.0, 1.5)), Some((3, [0.5, 0.0])));
+        assert_eq!(face_of(DVec3::new(1.0, 1.0, -4.0)), Some((5, [0.25, 0.25])));
+        assert_eq!(face_of(DVec3::ZERO), None);
+    }
+}

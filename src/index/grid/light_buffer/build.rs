@@ -1,0 +1,565 @@
+//! Building a light buffer, in four passes over the spheres: each sphere's
+//! rectangle of directions on the face it reaches (and what all of them
+//! cover, which sets the texels), the texels each covers, then the texels'
+//! lists counted and filled in sphere order, and each list sorted.
+
+use super::{Entry, Face, LightBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
+use crate::geometry::{Real, Vec3Ops, V3};
+use crate::index::grid::Candidate;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// A sphere covering more texels than this is tested by every ray instead
+/// of listed in each.
+const WIDEST_TEXELS: usize = 4096;
+/// Most spheres every ray tests: past it the light gets no buffer.
+const MOST_ALWAYS: usize = 64;
+/// Most texels a sphere is listed in on average: past it the light gets no
+/// buffer (so the lists' memory is bounded).
+const MOST_LISTED_PER_SPHERE: usize = 8;
+/// Most texels per sphere.
+const MOST_TEXELS_PER_SPHERE: f64 = 4.0;
+/// The texel's side against the root mean square side of the spheres'
+/// rectangles: about one texel per sphere, each listed in a few.
+const TEXEL_PER_RECTANGLE: f64 = 1.0;
+/// Spheres a task of the parallel passes takes.
+const SPHERES_PER_TASK: usize = 1 << 14;
+
+/// A rectangle in face coordinates.
+#[derive(Clone, Copy, Debug)]
+struct Rect {
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl Rect {
+    const EMPTY: Rect = Rect {
+        lo: [f64::INFINITY; 2],
+        hi: [f64::NEG_INFINITY; 2],
+    };
+
+    fn grow(&mut self, r: &Rect) {
+        for k in 0..2 {
+            self.lo[k] = self.lo[k].min(r.lo[k]);
+            self.hi[k] = self.hi[k].max(r.hi[k]);
+        }
+    }
+
+    fn area(&self) -> f64 {
+        (self.hi[0] - self.lo[0]) * (self.hi[1] - self.lo[1])
+    }
+
+    fn is_empty(&self) -> bool {
+        self.lo[0] > self.hi[0]
+    }
+}
+
+/// The two other axes of each axis, in the order face coordinates take them.
+const ACROSS: [[usize; 2]; 3] = [[1, 2], [2, 0], [0, 1]];
+
+/// The rectangle on face `f` that holds the face coordinates of the box
+/// `lo..hi` (relative to the light) where it reaches `s·x_a ≥ floor`,
+/// widened by [`WIDEN`]; None where the box does not reach so far.
+#[inline(always)]
+fn rect_on(f: usize, lo: [f64; 3], hi: [f64; 3], floor: f64) -> Option<Rect> {
+    let a = f / 2;
+    let (near, far) = if f.is_multiple_of(2) {
+        (lo[a], hi[a])
+    } else {
+        (-hi[a], -lo[a])
+    };
+    if far < floor {
+        return None;
+    }
+    let near = near.max(floor);
+    // Over x_a in [near, far] (positive), x_k / x_a is extreme at a corner.
+    let (inv_near, inv_far) = (1.0 / near, 1.0 / far);
+    let range = |k: usize| {
+        let (l, h) = (lo[k], hi[k]);
+        let low = if l < 0.0 { l * inv_near } else { l * inv_far };
+        let high = if h > 0.0 { h * inv_near } else { h * inv_far };
+        (
+            (low - WIDEN).max(-1.0 - WIDEN),
+            (high + WIDEN).min(1.0 + WIDEN),
+        )
+    };
+    let [b, c] = ACROSS[a];
+    let ((u0, u1), (v0, v1)) = (range(b), range(c));
+    (u0 <= u1 && v0 <= v1).then_some(Rect {
+        lo: [u0, v0],
+        hi: [u1, v1],
+    })
+}
+
+/// Calls `visit` with each face and rectangle of the ball `x` (from the
+/// light), radius `r`. A face is skipped when every point of the ball lies
+/// beyond its edge by more than [`WIDEN`]: `|q_b| ≥ |x_b| − r > (1 +
+/// WIDEN)·(s·x_a + r) ≥ (1 + WIDEN)·s·q_a`, so no point there has a face
+/// coordinate a ray of the face comes within 2^-16 of (module docs of the
+/// light buffer).
+///
+/// Most balls lie well inside the face of their centre's direction: when
+/// the whole box lies beyond `s·x_a ≥ m / 2` there and its rectangle stays
+/// within `1 − 2·WIDEN` of the face's edges, every point of the ball has
+/// face coordinates below `1/(1 + WIDEN)` in magnitude, so coordinates
+/// above `1 + WIDEN` on every other face: that face alone is visited.
+#[inline(always)]
+fn for_each_rect(x: DVec3, r: f64, near: f64, mut visit: impl FnMut(usize, Rect)) {
+    let (lo, hi) = ((x - r).to_array(), (x + r).to_array());
+    let (x, ax) = (x.to_array(), x.abs().to_array());
+    let a = if ax[0] >= ax[1] && ax[0] >= ax[2] {
+        0
+    } else if ax[1] >= ax[2] {
+        1
+    } else {
+        2
+    };
+    let (f, depth) = if x[a] >= 0.0 {
+        (2 * a, lo[a])
+    } else {
+        (2 * a + 1, -hi[a])
+    };
+    if depth >= near / 2.0 {
+        if let Some(rect) = rect_on(f, lo, hi, near / 2.0) {
+            let inner = 1.0 - 2.0 * WIDEN;
+            if rect.lo.iter().chain(&rect.hi).all(|c| c.abs() < inner) {
+                return visit(f, rect);
+            }
+        }
+    }
+    for (a, [b, c]) in ACROSS.into_iter().enumerate() {
+        let across = ax[b].max(ax[c]) - r;
+        for (f, along) in [(2 * a, x[a]), (2 * a + 1, -x[a])] {
+            if across <= (1.0 + WIDEN) * (along + r) {
+                if let Some(rect) = rect_on(f, lo, hi, near / 2.0) {
+                    visit(f, rect);
+                }
+            }
+        }
+    }
+}
+
+/// `x` minus more than f32's rounding of it, for numbers of magnitude up to
+/// 2 (face coordinates): converted to f32, still at most x.
+fn below_f32(x: f64) -> f32 {
+    (x - 1.0 / (1u64 << 22) as f64) as f32
+}
+
+/// A distance as f32, at most `x` (the relative rounding of the f64 it was
+/// computed in included).
+fn distance_below(x: f64) -> f32 {
+    (x - x.abs() / (1u64 << 22) as f64) as f32
+}
+
+/// One sphere as the light sees it: how near to the light its ball comes,
+/// and its rectangle where it reaches one face only.
+#[derive(Clone, Copy, Default)]
+struct Seen {
+    /// At most the true distance.
+    nearest: f32,
+    /// The face of `rect`, or [`NO_FACE`], or [`SEVERAL_FACES`] for a sphere
+    /// whose rectangles are computed again where needed.
+    face: u8,
+    /// `lo` and `hi`, rounded outward to f32.
+    rect: [f32; 4],
+}
+
+/// A sphere tested by every ray: in the short list, or near the light.
+const NO_FACE: u8 = u8::MAX;
+const SEVERAL_FACES: u8 = u8::MAX - 1;
+
+impl Seen {
+    fn of(x: DVec3, r: f64, near: f64, short: bool, cover: &mut Cover) -> Self {
+        let mut seen = Seen {
+            nearest: distance_below(x.length() - r),
+            face: NO_FACE,
+            rect: [0.0; 4],
+        };
+        if short || f64::from(seen.nearest) <= near {
+            return seen;
+        }
+        for_each_rect(x, r, near, |f, rect| {
+            cover.add(f, &rect);
+            seen.face = if seen.face == NO_FACE {
+                f as u8
+            } else {
+                SEVERAL_FACES
+            };
+            let (lo, hi) = (rect.lo.map(below_f32), rect.hi.map(|x| -below_f32(-x)));
+            seen.rect = [lo[0], lo[1], hi[0], hi[1]];
+        });
+        seen
+    }
+
+    /// Its rectangle on one face, if it has one there and no other.
+    fn one_rect(&self) -> Option<(usize, Rect)> {
+        (usize::from(self.face) < 6).then(|| {
+            let [u0, v0, u1, v1] = self.rect.map(f64::from);
+            let rect = Rect {
+                lo: [u0, v0],
+                hi: [u1, v1],
+            };
+            (usize::from(self.face), rect)
+        })
+    }
+}
+
+/// What the rectangles of all spheres add up to: their area and number,
+/// and each face's covered extent.
+#[derive(Clone, Copy)]
+struct Cover {
+    area: f64,
+    count: usize,
+    extent: [Rect; 6],
+}
+
+impl Cover {
+    fn none() -> Self {
+        Cover {
+            area: 0.0,
+            count: 0,
+            extent: [Rect::EMPTY; 6],
+        }
+    }
+
+    fn add(&mut self, f: usize, r: &Rect) {
+        self.area += r.area();
+        self.count += 1;
+        self.extent[f].grow(r);
+    }
+
+    fn merge(mut self, other: Cover) -> Self {
+        self.area += other.area;
+        self.count += other.count;
+        for (a, b) in self.extent.iter_mut().zip(&other.extent) {
+            a.grow(b);
+        }
+        self
+    }
+}
+
+/// The texels a rectangle covers on one face: columns `lo[0]..=hi[0]` of
+/// rows `lo[1]..=hi[1]`.
+#[derive(Clone, Copy, Default)]
+struct Span {
+    face: u8,
+    lo: [u32; 2],
+    hi: [u32; 2],
+    /// False for a sphere listed in no texel.
+    listed: bool,
+}
+
+impl Span {
+    fn texels(&self) -> usize {
+        let side = |k: usize| (self.hi[k] - self.lo[k] + 1) as usize;
+        if self.listed {
+            side(0) * side(1)
+        } else {
+            0
+        }
+    }
+
+    /// Whether any of its texels may lie in `texels`: the first and last
+    /// in the buffer's numbering are its corners (see [`Face::index`]).
+    fn reaches(&self, faces: &[Face; 6], texels: &Range<usize>) -> bool {
+        let face = &faces[usize::from(self.face)];
+        let first = face.index(self.lo[0] as usize, self.lo[1] as usize);
+        let last = face.index(self.hi[0] as usize, self.hi[1] as usize);
+        first < texels.end && last >= texels.start
+    }
+
+    #[inline(always)]
+    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize)) {
+        let face = &faces[usize::from(self.face)];
+        for j in self.lo[1]..self.hi[1] + 1 {
+            for i in self.lo[0]..self.hi[0] + 1 {
+                visit(face.index(i as usize, j as usize));
+            }
+        }
+    }
+}
+
+impl Face {
+    /// The texels `rect` covers on face `f` (clamped to the face's).
+    fn span(&self, f: usize, rect: &Rect) -> Span {
+        let at = |x: f64, k: usize| {
+            let i = ((x - self.lo[k]) * self.per_unit).floor();
+            i.clamp(0.0, (self.texels[k] - 1) as f64) as u32
+        };
+        Span {
+            face: f as u8,
+            lo: [at(rect.lo[0], 0), at(rect.lo[1], 1)],
+            hi: [at(rect.hi[0], 0), at(rect.hi[1], 1)],
+            listed: true,
+        }
+    }
+
+    fn texel_count(&self) -> usize {
+        self.texels[0] * self.texels[1]
+    }
+}
+
+impl<R: Real> LightBuffer<R> {
+    /// The buffer of `light` over `spheres` (the grid's copies), with the
+    /// grid's `short` list tested by every ray; None where too many spheres
+    /// would be, or the lists would hold too many entries.
+    pub(in crate::index::grid) fn new(
+        spheres: &[Candidate<R>],
+        short: &[u32],
+        light: V3<R>,
+    ) -> Option<Self> {
+        let light64 = light.to_dvec3();
+        let mut is_short = vec![false; spheres.len()];
+        for &i in short {
+            is_short[i as usize] = true;
+        }
+        let ball = |s: &Candidate<R>| (s.frame.center.to_dvec3() - light64, s.bound.to_f64());
+        // Every origin answered here lies within the listed spheres' box.
+        let farthest = (spheres.par_iter().zip(&is_short))
+            .filter(|(_, &short)| !short)
+            .map(|(s, _)| {
+                let (x, r) = ball(s);
+                (x.abs() + r).length()
+            })
+            .reduce(|| 0.0, f64::max)
+            * (1.0 + 1.0 / 1024.0);
+        if !(farthest.is_finite() && farthest > 0.0) {
+            return None;
+        }
+        let near = farthest / NEAR_DIVISOR;
+        // Each sphere as the light sees it, and what their rectangles cover.
+        let mut seen = vec![Seen::default(); spheres.len()];
+        let cover = (seen.par_chunks_mut(SPHERES_PER_TASK))
+            .zip(spheres.par_chunks(SPHERES_PER_TASK))
+            .zip(is_short.par_chunks(SPHERES_PER_TASK))
+            .map(|((seen, spheres), is_short)| {
+                let mut cover = Cover::none();
+                for ((seen, s), &short) in seen.iter_mut().zip(spheres).zip(is_short) {
+                    let (x, r) = ball(s);
+                    *seen = Seen::of(x, r, near, short, &mut cover);
+                }
+                cover
+            })
+            .reduce(Cover::none, Cover::merge);
+        let faces = lay_out_faces(&cover, spheres.len());
+        // The texels each sphere covers; none for the spheres every ray tests
+        // (near the light, in the short list, or too wide) and for those on
+        // several faces, placed apart.
+        let spans: Vec<Span> = seen
+            .par_iter()
+            .map(|s| s.one_rect().map(|(f, rect)| faces[f].span(f, &rect)))
+            .map(|span| {
+                span.filter(|s| s.texels() <= WIDEST_TEXELS)
+                    .unwrap_or_default()
+            })
+            .collect();
+        let several: Vec<(u32, Span)> = (seen.iter().enumerate())
+            .filter(|(_, s)| s.face == SEVERAL_FACES)
+            .flat_map(|(i, _)| {
+                let (x, r) = ball(&spheres[i]);
+                let mut rects = Vec::new();
+                for_each_rect(x, r, near, |f, rect| rects.push(faces[f].span(f, &rect)));
+                let wide = rects.iter().map(Span::texels).sum::<usize>() > WIDEST_TEXELS;
+                rects
+                    .into_iter()
+                    .filter(move |_| !wide)
+                    .map(move |span| (i as u32, span))
+            })
+            .collect();
+        let placed_apart: Vec<bool> = {
+            let mut v = vec![false; spheres.len()];
+            several.iter().for_each(|&(i, _)| v[i as usize] = true);
+            v
+        };
+        let mut always: Vec<Entry> = (seen.iter().zip(&spans).zip(&placed_apart))
+            .enumerate()
+            .filter(|(_, ((_, span), &apart))| span.texels() == 0 && !apart)
+            .map(|(i, ((s, _), _))| Entry {
+                sphere: i as u32,
+                nearest: s.nearest,
+            })
+            .collect();
+        if always.len() > MOST_ALWAYS {
+            return None;
+        }
+        // Their nearest distances may be negative (the light inside a ball).
+        always.sort_unstable_by(|a, b| {
+            a.nearest
+                .total_cmp(&b.nearest)
+                .then(a.sphere.cmp(&b.sphere))
+        });
+        let texels = faces.iter().map(Face::texel_count).sum();
+        let entry = |i: u32| Entry {
+            sphere: i,
+            nearest: seen[i as usize].nearest,
+        };
+        let placements = Placements {
+            spans: &spans,
+            several: &several,
+        };
+        let most = MOST_LISTED_PER_SPHERE * spheres.len();
+        let (starts, entries, complete_within) =
+            fill_lists(&faces, texels, &placements, entry, most)?;
+        Some(LightBuffer {
+            light,
+            light64,
+            farthest,
+            always,
+            faces,
+            starts,
+            entries,
+            complete_within,
+        })
+    }
+}
+
+/// Each face's texels over its covered extent, square, of one side for all
+/// faces: [`TEXEL_PER_RECTANGLE`] times the rectangles' root mean square
+/// side, but no more than [`MOST_TEXELS_PER_SPHERE`] texels a sphere.
+fn lay_out_faces(cover: &Cover, spheres: usize) -> [Face; 6] {
+    let mut faces = [Face::default(); 6];
+    if cover.count == 0 {
+        return faces;
+    }
+    let covered: f64 = (cover.extent.iter())
+        .filter(|e| !e.is_empty())
+        .map(Rect::area)
+        .sum();
+    let side = ((cover.area / cover.count as f64).sqrt() * TEXEL_PER_RECTANGLE)
+        .max((covered / (MOST_TEXELS_PER_SPHERE * spheres as f64)).sqrt());
+    let mut first = 0;
+    for (face, e) in faces.iter_mut().zip(&cover.extent) {
+        if e.is_empty() {
+            continue;
+        }
+        face.lo = e.lo;
+        face.per_unit = 1.0 / side;
+        face.texels = [0, 1].map(|k| {
+            let texels = ((e.hi[k] - e.lo[k]) * face.per_unit) as usize + 1;
+            texels.div_ceil(TILE) * TILE
+        });
+        face.first = first;
+        first += face.texel_count();
+    }
+    faces
+}
+
+/// Nearest first, then by position, as one integer: for the entries whose
+/// nearest distance is positive (every listed sphere's exceeds m), whose
+/// bits then order as the floats do. An order independent of the threads'.
+fn nearest_first(e: &Entry) -> u64 {
+    u64::from(e.nearest.to_bits()) << 32 | u64::from(e.sphere)
+}
+
+/// Where spheres are listed: a span per sphere (an empty one for a sphere
+/// listed nowhere), and the spans of spheres on several faces.
+struct Placements<'a> {
+    spans: &'a [Span],
+    several: &'a [(u32, Span)],
+}
+
+impl Placements<'_> {
+    /// Calls `visit` with each texel listing a sphere and that sphere,
+    /// sphere by sphere, for the texels in `texels` only.
+    fn for_each(&self, faces: &[Face; 6], texels: Range<usize>, mut visit: impl FnMut(usize, u32)) {
+        let mut place = |span: &Span, i: u32| {
+            if span.listed && span.reaches(faces, &texels) {
+                span.for_each(faces, |k| {
+                    if texels.contains(&k) {
+                        visit(k, i)
+                    }
+                });
+            }
+        };
+        (self.spans.iter().zip(0..)).for_each(|(span, i)| place(span, i));
+        (self.several.iter()).for_each(|(i, span)| place(span, *i));
+    }
+}
+
+/// The texels' lists of the spheres `placements` place, cut at
+/// [`MOST_LISTED`]: their starts, the entries, and each texel's nearest
+/// distance left out. None past `most` entries before the cut.
+///
+/// The texels are split into runs, one task each, that count and fill
+/// their own lists in sphere order (so the lists do not depend on the
+/// threads), each scanning every placement for its own texels.
+fn fill_lists(
+    faces: &[Face; 6],
+    texels: usize,
+    placements: &Placements,
+    entry: impl Fn(u32) -> Entry + Sync,
+    most: usize,
+) -> Option<(Vec<u32>, Vec<Entry>, Vec<f32>)> {
+    let tasks = rayon::current_num_threads().clamp(1, texels.max(1));
+    let runs: Vec<Range<usize>> = (0..tasks)
+        .map(|t| t * texels / tasks..(t + 1) * texels / tasks)
+        .collect();
+    let counts: Vec<Vec<u32>> = (runs.par_iter())
+        .map(|run| {
+            let mut counts = vec![0u32; run.len()];
+            placements.for_each(faces, run.clone(), |k, _| counts[k - run.start] += 1);
+            counts
+        })
+        .collect();
+    let total: usize = counts.iter().flatten().map(|&c| c as usize).sum();
+    if total > most {
+        return None;
+    }
+    let lists: Vec<(Vec<u32>, Vec<Entry>, Vec<f32>)> = (runs.par_iter().zip(counts))
+        .map(|(run, counts)| {
+            let mut cursors = Vec::with_capacity(counts.len());
+            let mut start = 0u32;
+            for &count in &counts {
+                cursors.push(start);
+                start += count;
+            }
+            let mut entries = vec![Entry::default(); start as usize];
+            placements.for_each(faces, run.clone(), |k, i| {
+                let cursor = &mut cursors[k - run.start];
+                entries[*cursor as usize] = entry(i);
+                *cursor += 1;
+            });
+            cut_lists(&counts, entries)
+        })
+        .collect();
+    // The runs' lists one after the other.
+    let mut starts = Vec::with_capacity(texels + 1);
+    let mut entries = Vec::with_capacity(lists.iter().map(|l| l.1.len()).sum());
+    let mut complete_within = Vec::with_capacity(texels);
+    starts.push(0);
+    for (run_starts, run_entries, run_complete) in lists {
+        let base = entries.len() as u32;
+        starts.extend(run_starts[1..].iter().map(|&s| base + s));
+        entries.extend_from_slice(&run_entries);
+        complete_within.extend_from_slice(&run_complete);
+    }
+    Some((starts, entries, complete_within))
+}
+
+/// The lists of `counts` entries each, one after another in `entries`, each
+/// cut to its nearest [`MOST_LISTED`] in place: their starts, the entries,
+/// and each list's nearest distance left out. A list keeps its order (the
+/// spheres', which is the grid's cell order) unless it is cut.
+fn cut_lists(counts: &[u32], mut entries: Vec<Entry>) -> (Vec<u32>, Vec<Entry>, Vec<f32>) {
+    let mut starts = Vec::with_capacity(counts.len() + 1);
+    let mut complete_within = Vec::with_capacity(counts.len());
+    let (mut from, mut end) = (0, 0);
+    starts.push(0);
+    for &count in counts {
+        let list = &mut entries[from..from + count as usize];
+        if list.len() > MOST_LISTED {
+            list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
+            complete_within.push(list[MOST_LISTED].nearest);
+        } else {
+            complete_within.push(f32::INFINITY);
+        }
+        let kept = list.len().min(MOST_LISTED);
+        entries.copy_within(from..from + kept, end);
+        from += count as usize;
+        end += kept;
+        starts.push(end as u32);
+    }
+    entries.truncate(end);
+    (starts, entries, complete_within)
+}
