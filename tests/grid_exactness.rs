@@ -576,3 +576,95 @@ fn small_budgets_both_give_up_and_answer() {
         );
     }
 }
+
+/// The grid with a light buffer for `light` answers every shadow ray toward
+/// it as brute force does, in packets and one at a time; returns whether it
+/// built the buffer.
+fn check_light_buffer(shapes: &[Ellipsoid<f32>], light: Vec3, origins: &[Vec3]) -> bool {
+    let brute = BruteForce::new(shapes);
+    let grid = VoxelHashGrid::new(shapes).with_lights(&[light]);
+    let want: Vec<bool> = origins
+        .iter()
+        .map(|&o| brute.any_hit(&Ray::new(o, light - o), 1.0))
+        .collect();
+    let mut got = vec![false; origins.len()];
+    assert_eq!(
+        grid.any_hits_toward(light, origins, &mut got),
+        Answered::All
+    );
+    assert_eq!(got, want, "toward {light} from {origins:?}");
+    for (&o, &want) in origins.iter().zip(&want) {
+        assert_eq!(
+            grid.any_hit_toward(light, o),
+            want,
+            "toward {light} from {o}"
+        );
+    }
+    grid.light_buffers().lights == 1
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    #[test]
+    fn light_buffers_agree_with_brute_force(kind in kinds(), seed in any::<u64>()) {
+        let shapes = scene(kind, seed);
+        let mut rng = Rng::new(seed ^ 0x11b);
+        for _ in 0..8 {
+            let (light, origins) = shadow_bundle(&mut rng, &shapes);
+            check_light_buffer(&shapes, light, &origins);
+        }
+    }
+}
+
+/// The property above is not vacuous: on every kind of scene most lights get
+/// a buffer, and its rays are both blocked and lit.
+#[test]
+fn light_buffers_are_built_and_answer_both_ways() {
+    for (i, kind) in ALL_KINDS.into_iter().enumerate() {
+        let shapes = scene(kind, 41 + i as u64);
+        let mut rng = Rng::new(7 + i as u64);
+        let (mut built, mut blocked, mut lit) = (0, 0, 0);
+        for _ in 0..20 {
+            let (light, origins) = shadow_bundle(&mut rng, &shapes);
+            if check_light_buffer(&shapes, light, &origins) {
+                built += 1;
+                let grid = VoxelHashGrid::new(&shapes).with_lights(&[light]);
+                for &o in &origins {
+                    if grid.any_hit_toward(light, o) {
+                        blocked += 1;
+                    } else {
+                        lit += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            built >= 10 && blocked >= 10 && lit >= 10,
+            "{kind:?}: {built} buffers, {blocked} blocked, {lit} lit"
+        );
+    }
+}
+
+/// Spheres in a row seen end-on from the light share a texel, more of them
+/// than a list keeps: rays from behind the kept ones go to the walk, and
+/// every answer is still brute force's.
+#[test]
+fn light_buffer_lists_cut_short_fall_back_to_the_walk() {
+    let light = Vec3::new(0.0, 0.0, 10.0);
+    let mut shapes: Vec<Ellipsoid<f32>> = (0..200)
+        .map(|i| Ellipsoid::new(Vec3::new(0.0, 0.0, -(i as f32) * 0.05), Vec3::splat(0.02)))
+        .collect();
+    // Spread elsewhere, so that the texels are small.
+    let mut rng = Rng::new(5);
+    shapes.extend(
+        (0..400).map(|_| Ellipsoid::new(rng.point(5.0) - Vec3::Z * 5.0, Vec3::splat(0.02))),
+    );
+    let origins: Vec<Vec3> = (0..400)
+        .map(|i| {
+            let z = -(i as f32) * 0.025 - 0.011;
+            Vec3::new(rng.range(-0.03, 0.03), rng.range(-0.03, 0.03), z)
+        })
+        .collect();
+    assert!(check_light_buffer(&shapes, light, &origins));
+}
