@@ -74,10 +74,13 @@ fn generated_scene_renders_the_same_with_either_index() {
         "index_bytes_per_sphere",
         "primary_mrays_s",
         "shadow_mrays_s",
+        "shadow_walk_mrays_s",
+        "light_buffer_bytes_per_sphere",
         "speedup_vs_brute",
     ] {
         assert!(first[field].as_f64().is_some_and(|v| v > 0.0), "{field}");
     }
+    assert!(first["light_buffers"].as_u64().is_some_and(|n| n > 0));
 }
 
 #[test]

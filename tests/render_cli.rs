@@ -130,6 +130,7 @@ fn stats_count_rays_by_kind() {
         "shadow",
         "reflection",
         "refraction 0",
+        "with a light buffer",
         "Mrays/s",
     ] {
         assert!(stderr.contains(word), "{word} missing from:\n{stderr}");

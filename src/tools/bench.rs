@@ -46,11 +46,21 @@ pub struct BenchResult {
     pub primary_mrays_s: f64,
     /// Eye rays one at a time.
     pub primary_single_mrays_s: f64,
+    /// Seconds to build the light buffers of the scene's lights (beyond
+    /// `build_s`), and their bytes per sphere, all lights together.
+    pub light_buffer_s: f64,
+    pub light_buffer_bytes_per_sphere: f64,
+    /// Lights with a light buffer.
+    pub light_buffers: usize,
     /// Shadow rays as the renderer traces them: those of one tile toward one
-    /// light together.
+    /// light together, answered from the light buffers.
     pub shadow_mrays_s: f64,
-    /// Shadow rays one at a time.
+    /// Shadow rays one at a time, from the light buffers.
     pub shadow_single_mrays_s: f64,
+    /// Shadow rays as the renderer traces them, walking the grid (no light
+    /// buffers: `--index walk`), together and one at a time.
+    pub shadow_walk_mrays_s: f64,
+    pub shadow_walk_single_mrays_s: f64,
     /// Primary rays when every cell costs a probe (no empty-space skipping).
     pub primary_mrays_s_probe_every_cell: Option<f64>,
     pub brute_primary_mrays_s: Option<f64>,
@@ -156,6 +166,16 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
     let mut single = Vec::new();
     let single_s = timed(|| single = primary_pass(&grid, &eye));
     let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
+    let walk_s = timed(|| {
+        std::hint::black_box(shadow_packets(&grid, &shadow));
+    });
+    let single_walk_s = timed(|| {
+        std::hint::black_box(shadow_pass(&grid, &shadow));
+    });
+    let lights = light_positions(&scene);
+    let started = Instant::now();
+    let grid = grid.with_lights(&lights);
+    let light_buffer_s = started.elapsed().as_secs_f64();
     let shadow_s = timed(|| {
         std::hint::black_box(shadow_packets(&grid, &shadow));
     });
@@ -185,8 +205,14 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
         levels: grid.levels().len(),
         primary_mrays_s: primary,
         primary_single_mrays_s: mrays(eye.len(), single_s),
+        light_buffer_s,
+        light_buffer_bytes_per_sphere: grid.light_buffers().bytes as f64
+            / shapes.len().max(1) as f64,
+        light_buffers: grid.light_buffers().lights,
         shadow_mrays_s: mrays(shadow_count, shadow_s),
         shadow_single_mrays_s: mrays(shadow_count, single_shadow_s),
+        shadow_walk_mrays_s: mrays(shadow_count, walk_s),
+        shadow_walk_single_mrays_s: mrays(shadow_count, single_walk_s),
         primary_mrays_s_probe_every_cell: probing,
         brute_primary_mrays_s: brute,
         brute_sample,
@@ -257,11 +283,7 @@ fn shadow_rays(
     eye: &[Ray<f32>],
     hits: &[Option<Hit<f32>>],
 ) -> Vec<ShadowBatch> {
-    let lights: Vec<V3<f32>> = scene
-        .lights
-        .iter()
-        .map(|l| V3::<f32>::from_dvec3(l.position))
-        .collect();
+    let lights = light_positions(scene);
     let block = (render::BLOCK_COLUMNS * render::BAND_ROWS) as usize;
     eye.par_chunks(block)
         .zip(hits.par_chunks(block))
@@ -306,13 +328,20 @@ fn shadow_packets(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usi
             {
                 if index.any_hits_toward(batch.light, origins, out) == Answered::GaveUp {
                     for (&o, b) in origins.iter().zip(out) {
-                        *b = index.any_hit(&Ray::new(o, batch.light - o), 1.0);
+                        *b = index.any_hit_toward(batch.light, o);
                     }
                 }
             }
             blocked.iter().filter(|&&b| b).count()
         })
         .sum()
+}
+
+/// The scene's light positions, as the renderer casts shadow rays toward them.
+fn light_positions(scene: &Scene) -> Vec<V3<f32>> {
+    (scene.lights.iter())
+        .map(|l| V3::<f32>::from_dvec3(l.position))
+        .collect()
 }
 
 /// The shadow rays one at a time.
@@ -323,7 +352,7 @@ fn shadow_pass(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usize 
             batch
                 .origins
                 .iter()
-                .filter(|&&o| index.any_hit(&Ray::new(o, batch.light - o), 1.0))
+                .filter(|&&o| index.any_hit_toward(batch.light, o))
                 .count()
         })
         .sum()
@@ -355,22 +384,25 @@ fn brute_rate(shapes: &[Ellipsoid<f32>], eye: &[Ray<f32>]) -> (usize, f64) {
 /// The figures as a Markdown table.
 pub fn markdown_table(results: &[BenchResult]) -> String {
     let mut out = String::from(
-        "| scene | spheres | parse s | build s | index B/sphere | levels | primary Mrays/s | primary single-ray Mrays/s | shadow Mrays/s | shadow single-ray Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | spheres | parse s | build s | index B/sphere | levels | light buffers s | B/sphere | primary Mrays/s | primary single-ray Mrays/s | shadow Mrays/s | shadow single-ray Mrays/s | shadow walked Mrays/s | primary, probe every cell | brute Mrays/s | speed-up |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in results {
         out += &format!(
-            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} |\n",
+            "| {} | {} | {:.3} | {:.3} | {:.1} | {} | {:.3} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {} |\n",
             r.scene,
             r.spheres,
             r.parse_s,
             r.build_s,
             r.index_bytes_per_sphere,
             r.levels,
+            r.light_buffer_s,
+            r.light_buffer_bytes_per_sphere,
             r.primary_mrays_s,
             r.primary_single_mrays_s,
             r.shadow_mrays_s,
             r.shadow_single_mrays_s,
+            r.shadow_walk_mrays_s,
             or_dash(r.primary_mrays_s_probe_every_cell, |v| format!("{v:.2}")),
             or_dash(r.brute_primary_mrays_s, |v| format!("{v:.4}")),
             or_dash(r.speedup_vs_brute, |v| format!("{v:.0}×")),
