@@ -260,21 +260,24 @@ impl Span {
         }
     }
 
-    /// Whether any of its texels may lie in `texels`: the first and last
-    /// in the buffer's numbering are its corners (see [`Face::index`]).
-    fn reaches(&self, faces: &[Face; 6], texels: &Range<usize>) -> bool {
+    /// Its first and last texels in the buffer's numbering: its corners
+    /// (see [`Face::index`]).
+    fn ends(&self, faces: &[Face; 6]) -> (usize, usize) {
         let face = &faces[usize::from(self.face)];
         let first = face.index(self.lo[0] as usize, self.lo[1] as usize);
         let last = face.index(self.hi[0] as usize, self.hi[1] as usize);
-        first < texels.end && last >= texels.start
+        (first, last)
     }
 
     #[inline(always)]
     fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize)) {
         let face = &faces[usize::from(self.face)];
-        for j in self.lo[1]..self.hi[1] + 1 {
-            for i in self.lo[0]..self.hi[0] + 1 {
-                visit(face.index(i as usize, j as usize));
+        // Face::index, split into the row's part and the column's.
+        let tile_row = face.texels[0] * TILE;
+        for j in self.lo[1] as usize..self.hi[1] as usize + 1 {
+            let row = face.first + j / TILE * tile_row + j % TILE * TILE;
+            for i in self.lo[0] as usize..self.hi[0] as usize + 1 {
+                visit(row + i / TILE * TILE * TILE + i % TILE);
             }
         }
     }
@@ -464,7 +467,13 @@ impl Placements<'_> {
     /// sphere by sphere, for the texels in `texels` only.
     fn for_each(&self, faces: &[Face; 6], texels: Range<usize>, mut visit: impl FnMut(usize, u32)) {
         let mut place = |span: &Span, i: u32| {
-            if span.listed && span.reaches(faces, &texels) {
+            if !span.listed {
+                return;
+            }
+            let (first, last) = span.ends(faces);
+            if first >= texels.start && last < texels.end {
+                span.for_each(faces, |k| visit(k, i));
+            } else if first < texels.end && last >= texels.start {
                 span.for_each(faces, |k| {
                     if texels.contains(&k) {
                         visit(k, i)
