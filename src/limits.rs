@@ -131,6 +131,9 @@ pub const INDEX_BUILD_BYTES_PER_SPHERE: usize = 256;
 /// (about 30 a light on the benchmark families at 10^6 spheres, so three or
 /// four lights get one); building one takes about 110 more for a while.
 pub const LIGHT_BUFFER_BYTES_PER_SPHERE: usize = 128;
+/// Bytes the light buffers may hold whatever the scene's size, so that a
+/// small scene's lights get them too.
+pub const LIGHT_BUFFER_MIN_BYTES: usize = 1 << 20;
 /// Largest request head (request line and headers) in bytes; larger is 431.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 /// Most header lines in one request; more is 431.

@@ -39,8 +39,9 @@ pub enum SpecularModel {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum IndexKind {
     /// The multi-resolution voxel hash grid, with a light buffer per light
-    /// (as many as [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`] allows)
-    /// that answers shadow rays toward it.
+    /// (as many as [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`] allows,
+    /// for renders of at least as many eye samples as spheres) that answers
+    /// shadow rays toward it.
     #[default]
     Grid,
     /// The grid alone: shadow rays walk it too (for measuring the buffers).
@@ -194,7 +195,11 @@ pub fn render_in<R: Real>(
     check_options(options)?;
     let started = Instant::now();
     let shapes = shapes_of::<R>(scene);
-    let lights = light_positions::<R>(scene);
+    let lights = if light_buffers_pay(scene, options) {
+        light_positions::<R>(scene)
+    } else {
+        Vec::new()
+    };
     let index = build_index(&shapes, &lights, options.index);
     render_with(
         scene,
@@ -214,6 +219,18 @@ fn shapes_of<R: Real>(scene: &Scene) -> Vec<Ellipsoid<R>> {
         .par_iter()
         .map(Ellipsoid::from_sphere)
         .collect()
+}
+
+/// Whether the index should build light buffers for this render: when it
+/// traces at least as many eye samples as the scene has spheres. A buffer
+/// costs about as much to build per sphere as it saves per shadow ray
+/// (docs/index.md: at 10⁶ spheres and 1024² pixels the three lights' buffers
+/// take 0.3 s and save 0.5–1.0 s of shadow rays; at 10⁷ spheres they take
+/// 7.8 s and save 3.6 s), and a render casts about one shadow ray per light
+/// per eye hit.
+fn light_buffers_pay(scene: &Scene, options: &RenderOptions) -> bool {
+    let samples = region_of(scene, options).map_or(0, |r| r.pixels()) * u64::from(options.spp);
+    samples >= scene.spheres.len() as u64
 }
 
 /// The scene's light positions in the precision `R`, as shading casts
@@ -728,6 +745,48 @@ mod tests {
             .stats;
         assert!(stats.rays.shadow > 0);
         assert_eq!(stats.in_packets, stats.rays);
+    }
+
+    /// Light buffers are built where the render traces at least as many eye
+    /// samples as there are spheres, and the images agree either way.
+    #[test]
+    fn light_buffers_are_built_where_the_samples_outnumber_the_spheres() {
+        // A grid of small spheres (a few spheres would all be the grid's short list).
+        let mut text = String::from(
+            "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\nBACK 0 0 0\nAMBIENT 0.2 0.2 0.2\n\
+             LIGHT a 0 10 -5 1 1 1\nLIGHT b -10 0 0 0.5 0.5 0.5\n",
+        );
+        for i in 0..300 {
+            let (x, y, z) = (i % 10, i / 10 % 10, i / 100);
+            text += &format!(
+                "SPHERE s{i} {} {} {} 0.1 0.1 0.1 0.5 0.5 0.5 0.2 0.6 0.4 0.3 40\n",
+                x as f64 * 0.3 - 1.4,
+                y as f64 * 0.3 - 1.4,
+                -4.0 - z as f64 * 0.3
+            );
+        }
+        let mut scene = crate::scene::parse(text).unwrap();
+        let spheres = scene.spheres.len() as u32;
+        let lights = scene.lights.len();
+        let render = |scene: &Scene, spp| {
+            let options = RenderOptions {
+                spp,
+                ..RenderOptions::default()
+            };
+            render_scene(scene, &options, &|_| {}).unwrap()
+        };
+        (scene.camera.width, scene.camera.height) = (spheres - 1, 1);
+        let (few, more) = (render(&scene, 1), render(&scene, 2));
+        assert_eq!(few.stats.light_buffers.lights, 0);
+        assert_eq!(more.stats.light_buffers.lights, lights);
+        let walked = RenderOptions {
+            spp: 2,
+            index: IndexKind::Walk,
+            ..RenderOptions::default()
+        };
+        let walked = render_scene(&scene, &walked, &|_| {}).unwrap();
+        assert_eq!(walked.stats.light_buffers.lights, 0);
+        assert_eq!(walked.image, more.image);
     }
 
     #[test]

@@ -564,14 +564,15 @@ fn charge_render(
 }
 
 /// What a scene holds once parsed and indexed, in bytes: the scene, its f32
-/// shapes, and the index with what its build needs.
+/// shapes, and the index with what its build needs (the light buffers' build
+/// works after the grid's, within the grid's build allowance).
 fn scene_bytes(scene: &Scene) -> u64 {
     let per_sphere = std::mem::size_of::<crate::scene::Sphere>()
         + std::mem::size_of::<crate::geometry::Ellipsoid<f32>>()
         + limits::INDEX_BUILD_BYTES_PER_SPHERE
         + limits::LIGHT_BUFFER_BYTES_PER_SPHERE;
     let lights = scene.lights.len() * std::mem::size_of::<crate::scene::Light>();
-    (scene.spheres.len() * per_sphere + lights) as u64
+    (scene.spheres.len() * per_sphere + lights + limits::LIGHT_BUFFER_MIN_BYTES) as u64
 }
 
 /// The largest encoding of the image of `region`, in bytes. A PPM is its

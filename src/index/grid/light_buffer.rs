@@ -48,6 +48,8 @@
 
 mod build;
 
+pub(super) use build::Scratch;
+
 use super::{Candidate, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
 use glam::DVec3;

@@ -242,17 +242,21 @@ impl<R: Real> VoxelHashGrid<R> {
     /// The same grid with a light buffer for each of `lights`.
     ///
     /// Buffers are built light by light (each in parallel) while their
-    /// bytes stay within [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`];
+    /// bytes stay within [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`] (or
+    /// [`crate::limits::LIGHT_BUFFER_MIN_BYTES`] in all);
     /// shadow rays toward the other lights walk the grid. A light whose
     /// buffer would be tested in full by too many rays gets none either.
     pub fn with_lights(mut self, lights: &[V3<R>]) -> Self {
-        let budget = crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE * self.spheres.len();
+        let budget = (crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE * self.spheres.len())
+            .max(crate::limits::LIGHT_BUFFER_MIN_BYTES);
         let mut used = 0;
+        let mut scratch = light_buffer::Scratch::default();
         for &light in lights {
             if self.light_buffer(light).is_some() {
                 continue;
             }
-            let Some(buffer) = LightBuffer::new(&self.spheres, &self.short, light) else {
+            let Some(buffer) = LightBuffer::new(&self.spheres, &self.short, light, &mut scratch)
+            else {
                 continue;
             };
             used += buffer.bytes();

@@ -303,6 +303,17 @@ impl Face {
     }
 }
 
+/// The memory one light's build works in, which the next light's reuses:
+/// fresh pages cost more to fault in (the kernel zeroes each) than the
+/// passes that fill them.
+#[derive(Default)]
+pub(in crate::index::grid) struct Scratch {
+    is_short: Vec<bool>,
+    seen: Vec<Seen>,
+    spans: Vec<Span>,
+    entries: Vec<Entry>,
+}
+
 impl<R: Real> LightBuffer<R> {
     /// The buffer of `light` over `spheres` (the grid's copies), with the
     /// grid's `short` list tested by every ray; None where too many spheres
@@ -311,15 +322,23 @@ impl<R: Real> LightBuffer<R> {
         spheres: &[Candidate<R>],
         short: &[u32],
         light: V3<R>,
+        scratch: &mut Scratch,
     ) -> Option<Self> {
         let light64 = light.to_dvec3();
-        let mut is_short = vec![false; spheres.len()];
+        let Scratch {
+            is_short,
+            seen,
+            spans,
+            entries: scratch,
+        } = scratch;
+        is_short.clear();
+        is_short.resize(spheres.len(), false);
         for &i in short {
             is_short[i as usize] = true;
         }
         let ball = |s: &Candidate<R>| (s.frame.center.to_dvec3() - light64, s.bound.to_f64());
         // Every origin answered here lies within the listed spheres' box.
-        let farthest = (spheres.par_iter().zip(&is_short))
+        let farthest = (spheres.par_iter().zip(&*is_short))
             .filter(|(_, &short)| !short)
             .map(|(s, _)| {
                 let (x, r) = ball(s);
@@ -332,7 +351,8 @@ impl<R: Real> LightBuffer<R> {
         }
         let near = farthest / NEAR_DIVISOR;
         // Each sphere as the light sees it, and what their rectangles cover.
-        let mut seen = vec![Seen::default(); spheres.len()];
+        seen.clear();
+        seen.resize(spheres.len(), Seen::default());
         let cover = (seen.par_chunks_mut(SPHERES_PER_TASK))
             .zip(spheres.par_chunks(SPHERES_PER_TASK))
             .zip(is_short.par_chunks(SPHERES_PER_TASK))
@@ -349,14 +369,13 @@ impl<R: Real> LightBuffer<R> {
         // The texels each sphere covers; none for the spheres every ray tests
         // (near the light, in the short list, or too wide) and for those on
         // several faces, placed apart.
-        let spans: Vec<Span> = seen
-            .par_iter()
-            .map(|s| s.one_rect().map(|(f, rect)| faces[f].span(f, &rect)))
-            .map(|span| {
-                span.filter(|s| s.texels() <= WIDEST_TEXELS)
-                    .unwrap_or_default()
-            })
-            .collect();
+        spans.clear();
+        spans.par_extend(seen.par_iter().map(|s| {
+            (s.one_rect().map(|(f, rect)| faces[f].span(f, &rect)))
+                .filter(|s| s.texels() <= WIDEST_TEXELS)
+                .unwrap_or_default()
+        }));
+        let (seen, spans) = (&seen[..], &spans[..]);
         let several: Vec<(u32, Span)> = (seen.iter().enumerate())
             .filter(|(_, s)| s.face == SEVERAL_FACES)
             .flat_map(|(i, _)| {
@@ -375,7 +394,7 @@ impl<R: Real> LightBuffer<R> {
             several.iter().for_each(|&(i, _)| v[i as usize] = true);
             v
         };
-        let mut always: Vec<Entry> = (seen.iter().zip(&spans).zip(&placed_apart))
+        let mut always: Vec<Entry> = (seen.iter().zip(spans).zip(&placed_apart))
             .enumerate()
             .filter(|(_, ((_, span), &apart))| span.texels() == 0 && !apart)
             .map(|(i, ((s, _), _))| Entry {
@@ -398,12 +417,12 @@ impl<R: Real> LightBuffer<R> {
             nearest: seen[i as usize].nearest,
         };
         let placements = Placements {
-            spans: &spans,
+            spans,
             several: &several,
         };
         let most = MOST_LISTED_PER_SPHERE * spheres.len();
         let (starts, entries, complete_within) =
-            fill_lists(&faces, texels, &placements, entry, most)?;
+            fill_lists(&faces, texels, &placements, entry, most, scratch)?;
         Some(LightBuffer {
             light,
             light64,
@@ -499,6 +518,7 @@ fn fill_lists(
     placements: &Placements,
     entry: impl Fn(u32) -> Entry + Sync,
     most: usize,
+    scratch: &mut Vec<Entry>,
 ) -> Option<(Vec<u32>, Vec<Entry>, Vec<f32>)> {
     let tasks = rayon::current_num_threads().clamp(1, texels.max(1));
     let runs: Vec<Range<usize>> = (0..tasks)
@@ -511,19 +531,31 @@ fn fill_lists(
             counts
         })
         .collect();
-    let total: usize = counts.iter().flatten().map(|&c| c as usize).sum();
+    let run_totals: Vec<usize> = (counts.iter())
+        .map(|c| c.iter().map(|&c| c as usize).sum())
+        .collect();
+    let total: usize = run_totals.iter().sum();
     if total > most {
         return None;
     }
-    let lists: Vec<(Vec<u32>, Vec<Entry>, Vec<f32>)> = (runs.par_iter().zip(counts))
-        .map(|(run, counts)| {
+    // Every run's lists in the scratch, then cut there.
+    scratch.clear();
+    scratch.resize(total, Entry::default());
+    let mut slices = Vec::with_capacity(tasks);
+    let mut rest = scratch.as_mut_slice();
+    for &run_total in &run_totals {
+        let (mine, tail) = rest.split_at_mut(run_total);
+        slices.push(mine);
+        rest = tail;
+    }
+    let cut: Vec<(usize, Vec<u32>, Vec<f32>)> = (runs.par_iter().zip(counts).zip(slices))
+        .map(|((run, counts), entries)| {
             let mut cursors = Vec::with_capacity(counts.len());
             let mut start = 0u32;
             for &count in &counts {
                 cursors.push(start);
                 start += count;
             }
-            let mut entries = vec![Entry::default(); start as usize];
             placements.for_each(faces, run.clone(), |k, i| {
                 let cursor = &mut cursors[k - run.start];
                 entries[*cursor as usize] = entry(i);
@@ -532,25 +564,29 @@ fn fill_lists(
             cut_lists(&counts, entries)
         })
         .collect();
-    // The runs' lists one after the other.
+    // The runs' kept lists one after the other.
+    let kept = cut.iter().map(|(kept, _, _)| kept).sum();
     let mut starts = Vec::with_capacity(texels + 1);
-    let mut entries = Vec::with_capacity(lists.iter().map(|l| l.1.len()).sum());
+    let mut entries = Vec::with_capacity(kept);
     let mut complete_within = Vec::with_capacity(texels);
     starts.push(0);
-    for (run_starts, run_entries, run_complete) in lists {
+    let mut from = 0;
+    for ((kept, run_starts, run_complete), run_total) in cut.into_iter().zip(run_totals) {
         let base = entries.len() as u32;
         starts.extend(run_starts[1..].iter().map(|&s| base + s));
-        entries.extend_from_slice(&run_entries);
+        entries.extend_from_slice(&scratch[from..from + kept]);
         complete_within.extend_from_slice(&run_complete);
+        from += run_total;
     }
     Some((starts, entries, complete_within))
 }
 
 /// The lists of `counts` entries each, one after another in `entries`, each
-/// cut to its nearest [`MOST_LISTED`] in place: their starts, the entries,
-/// and each list's nearest distance left out. A list keeps its order (the
-/// spheres', which is the grid's cell order) unless it is cut.
-fn cut_lists(counts: &[u32], mut entries: Vec<Entry>) -> (Vec<u32>, Vec<Entry>, Vec<f32>) {
+/// cut to its nearest [`MOST_LISTED`] and moved to the front in place: how
+/// many are kept, their starts, and each list's nearest distance left out.
+/// A list keeps its order (the spheres', which is the grid's cell order)
+/// unless it is cut.
+fn cut_lists(counts: &[u32], entries: &mut [Entry]) -> (usize, Vec<u32>, Vec<f32>) {
     let mut starts = Vec::with_capacity(counts.len() + 1);
     let mut complete_within = Vec::with_capacity(counts.len());
     let (mut from, mut end) = (0, 0);
@@ -569,6 +605,5 @@ fn cut_lists(counts: &[u32], mut entries: Vec<Entry>) -> (Vec<u32>, Vec<Entry>, 
         end += kept;
         starts.push(end as u32);
     }
-    entries.truncate(end);
-    (starts, entries, complete_within)
+    (end, starts, complete_within)
 }
