@@ -1,14 +1,14 @@
 //! Light buffers: for each point light, the spheres seen from it in each
-//! direction, nearest first (Haines & Greenberg, "The Light Buffer: A
-//! Shadow-Testing Accelerator", 1986).
+//! direction (Haines & Greenberg, "The Light Buffer: A Shadow-Testing
+//! Accelerator", 1986).
 //!
 //! A shadow ray toward a point light L ends at L, so whatever blocks it lies
 //! in the direction of its origin as seen from L, and nearer to L than the
 //! origin. Around each light a cube of six faces is cut into texels of
 //! direction; each texel lists the spheres whose bounding ball may meet a
-//! direction through it, ordered by how near to L the ball comes. A shadow
-//! ray looks up its texel and tests the list in that order until the balls
-//! lie farther from L than its origin: no walk, however far the light.
+//! direction through it, with how near to L the ball comes. A shadow ray
+//! looks up its texel and tests the listed spheres whose balls come nearer
+//! to L than its origin, until one blocks: no walk, however far the light.
 //! Shadow rays from anywhere (eye hits, bounce hits) are answered alike, so
 //! incoherent ones cost no more than coherent ones.
 //!
@@ -118,7 +118,8 @@ pub(super) struct LightBuffer<R: Real> {
     /// Spheres every ray tests, nearest first.
     always: Vec<Entry>,
     faces: [Face; 6],
-    /// Texel k lists `entries[starts[k]..starts[k + 1]]`, nearest first.
+    /// Texel k lists `entries[starts[k]..starts[k + 1]]`, in the grid's
+    /// sphere order.
     starts: Vec<u32>,
     entries: Vec<Entry>,
     /// How near to the light the first sphere left out of texel k's list
@@ -182,7 +183,8 @@ impl<R: Real> LightBuffer<R> {
             let frame = &spheres[e.sphere as usize].frame;
             frame.intersect(&ray, R::zero(), R::one()).is_some()
         };
-        // Nearest first: the first sphere beyond the origin ends the list.
+        // The every-ray list is nearest first, so its first sphere beyond the
+        // origin ends it; a texel's list is in sphere order, each one checked.
         let nearer = |e: &&Entry| f64::from(e.nearest) <= within;
         if self.always.iter().take_while(nearer).any(&mut blocks) {
             return Some(true);

@@ -1,7 +1,8 @@
 //! Building a light buffer, in four passes over the spheres: each sphere's
 //! rectangle of directions on the face it reaches (and what all of them
 //! cover, which sets the texels), the texels each covers, then the texels'
-//! lists counted and filled in sphere order, and each list sorted.
+//! lists counted and filled in sphere order; each list is then cut to its
+//! nearest [`MOST_LISTED`].
 
 use super::{Entry, Face, LightBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
 use crate::geometry::{Real, Vec3Ops, V3};
