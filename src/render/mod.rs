@@ -235,7 +235,7 @@ fn light_buffers_pay(scene: &Scene, options: &RenderOptions) -> bool {
 
 /// The scene's light positions in the precision `R`, as shading casts
 /// shadow rays toward them.
-fn light_positions<R: Real>(scene: &Scene) -> Vec<V3<R>> {
+pub(crate) fn light_positions<R: Real>(scene: &Scene) -> Vec<V3<R>> {
     (scene.lights.iter())
         .map(|l| V3::<R>::from_dvec3(l.position))
         .collect()

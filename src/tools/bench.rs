@@ -172,7 +172,7 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
     let single_walk_s = timed(|| {
         std::hint::black_box(shadow_pass(&grid, &shadow));
     });
-    let lights = light_positions(&scene);
+    let lights = render::light_positions::<f32>(&scene);
     let started = Instant::now();
     let grid = grid.with_lights(&lights);
     let light_buffer_s = started.elapsed().as_secs_f64();
@@ -283,7 +283,7 @@ fn shadow_rays(
     eye: &[Ray<f32>],
     hits: &[Option<Hit<f32>>],
 ) -> Vec<ShadowBatch> {
-    let lights = light_positions(scene);
+    let lights = render::light_positions::<f32>(scene);
     let block = (render::BLOCK_COLUMNS * render::BAND_ROWS) as usize;
     eye.par_chunks(block)
         .zip(hits.par_chunks(block))
@@ -335,13 +335,6 @@ fn shadow_packets(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usi
             blocked.iter().filter(|&&b| b).count()
         })
         .sum()
-}
-
-/// The scene's light positions, as the renderer casts shadow rays toward them.
-fn light_positions(scene: &Scene) -> Vec<V3<f32>> {
-    (scene.lights.iter())
-        .map(|l| V3::<f32>::from_dvec3(l.position))
-        .collect()
 }
 
 /// The shadow rays one at a time.
