@@ -9,7 +9,7 @@ use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
 use rayon::prelude::*;
-use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// A sphere covering more texels than this is tested by every ray instead
 /// of listed in each.
@@ -26,6 +26,10 @@ const MOST_TEXELS_PER_SPHERE: f64 = 4.0;
 const TEXEL_PER_RECTANGLE: f64 = 1.0;
 /// Spheres a task of the parallel passes takes.
 const SPHERES_PER_TASK: usize = 1 << 14;
+/// Parts (and runs of texels) per thread in filling the lists.
+const PARTS_PER_THREAD: usize = 4;
+/// Most bytes a sphere the parts' texel counts may take together.
+const COUNT_BYTES_PER_SPHERE: usize = 16;
 
 /// A rectangle in face coordinates.
 #[derive(Clone, Copy, Debug)]
@@ -261,15 +265,6 @@ impl Span {
         }
     }
 
-    /// Its first and last texels in the buffer's numbering: its corners
-    /// (see [`Face::index`]).
-    fn ends(&self, faces: &[Face; 6]) -> (usize, usize) {
-        let face = &faces[usize::from(self.face)];
-        let first = face.index(self.lo[0] as usize, self.lo[1] as usize);
-        let last = face.index(self.hi[0] as usize, self.hi[1] as usize);
-        (first, last)
-    }
-
     #[inline(always)]
     fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize)) {
         let face = &faces[usize::from(self.face)];
@@ -312,7 +307,7 @@ pub(in crate::index::grid) struct Scratch {
     is_short: Vec<bool>,
     seen: Vec<Seen>,
     spans: Vec<Span>,
-    entries: Vec<Entry>,
+    fill: FillScratch,
 }
 
 impl<R: Real> LightBuffer<R> {
@@ -330,7 +325,7 @@ impl<R: Real> LightBuffer<R> {
             is_short,
             seen,
             spans,
-            entries: scratch,
+            fill,
         } = scratch;
         is_short.clear();
         is_short.resize(spheres.len(), false);
@@ -422,8 +417,9 @@ impl<R: Real> LightBuffer<R> {
             several: &several,
         };
         let most = MOST_LISTED_PER_SPHERE * spheres.len();
+        let split = Split::for_threads(spheres.len(), texels, rayon::current_num_threads());
         let (starts, entries, complete_within) =
-            fill_lists(&faces, texels, &placements, entry, most, scratch)?;
+            fill_lists(&faces, texels, &placements, entry, most, split, fill)?;
         Some(LightBuffer {
             light,
             light64,
@@ -482,27 +478,76 @@ struct Placements<'a> {
     several: &'a [(u32, Span)],
 }
 
-impl Placements<'_> {
+impl<'a> Placements<'a> {
+    /// The placements cut into `parts` runs of consecutive spheres, the
+    /// spheres on several faces with the last: each texel's list takes the
+    /// parts' entries in turn, so it comes out in sphere order whatever the
+    /// cut.
+    fn parts(&self, parts: usize) -> Vec<Part<'a>> {
+        let per_part = self.spans.len().div_ceil(parts.max(1)).max(1);
+        let mut cut: Vec<Part> = (self.spans.chunks(per_part).zip((0..).step_by(per_part)))
+            .map(|(spans, first)| Part {
+                first,
+                spans,
+                several: &[],
+            })
+            .collect();
+        match cut.last_mut() {
+            Some(last) => last.several = self.several,
+            None => cut.push(Part {
+                first: 0,
+                spans: &[],
+                several: self.several,
+            }),
+        }
+        cut
+    }
+}
+
+/// Consecutive spheres' spans (the first at position `first`), and
+/// spheres on several faces.
+struct Part<'a> {
+    first: u32,
+    spans: &'a [Span],
+    several: &'a [(u32, Span)],
+}
+
+impl Part<'_> {
     /// Calls `visit` with each texel listing a sphere and that sphere,
-    /// sphere by sphere, for the texels in `texels` only.
-    fn for_each(&self, faces: &[Face; 6], texels: Range<usize>, mut visit: impl FnMut(usize, u32)) {
-        let mut place = |span: &Span, i: u32| {
-            if !span.listed {
-                return;
-            }
-            let (first, last) = span.ends(faces);
-            if first >= texels.start && last < texels.end {
+    /// sphere by sphere.
+    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, u32)) {
+        for (span, i) in self.spans.iter().zip(self.first..) {
+            if span.listed {
                 span.for_each(faces, |k| visit(k, i));
-            } else if first < texels.end && last >= texels.start {
-                span.for_each(faces, |k| {
-                    if texels.contains(&k) {
-                        visit(k, i)
-                    }
-                });
             }
-        };
-        (self.spans.iter().zip(0..)).for_each(|(span, i)| place(span, i));
-        (self.several.iter()).for_each(|(i, span)| place(span, *i));
+        }
+        for &(i, span) in self.several {
+            span.for_each(faces, |k| visit(k, i));
+        }
+    }
+}
+
+/// The fill's working memory, which the next light's reuses.
+#[derive(Default)]
+pub(in crate::index::grid) struct FillScratch {
+    /// Per part, its entries in each texel, then where it writes the next.
+    counts: Vec<Vec<u32>>,
+    /// Texel k's entries before the cut are `listed[raw[k]..raw[k + 1]]`.
+    raw: Vec<usize>,
+    /// Entries packed by [`pack`]: the parts write their own places of
+    /// each list at once.
+    listed: Vec<AtomicU64>,
+}
+
+/// An entry as one integer (and back), for [`FillScratch::listed`].
+fn pack(e: Entry) -> u64 {
+    u64::from(e.nearest.to_bits()) << 32 | u64::from(e.sphere)
+}
+
+fn unpack(bits: u64) -> Entry {
+    Entry {
+        sphere: bits as u32,
+        nearest: f32::from_bits((bits >> 32) as u32),
     }
 }
 
@@ -510,101 +555,263 @@ impl Placements<'_> {
 /// [`MOST_LISTED`]: their starts, the entries, and each texel's nearest
 /// distance left out. None past `most` entries before the cut.
 ///
-/// The texels are split into runs, one task each, that count and fill
-/// their own lists in sphere order (so the lists do not depend on the
-/// threads), each scanning every placement for its own texels.
+/// A counting sort, parallel over runs of spheres: each part counts its
+/// entries per texel, the counts become each part's places in each list,
+/// and each part writes its entries there, so every pass does the same
+/// work on each thread wherever the spheres' texels lie. The lists are
+/// then cut, in runs of texels holding equal numbers of entries.
 fn fill_lists(
     faces: &[Face; 6],
     texels: usize,
     placements: &Placements,
     entry: impl Fn(u32) -> Entry + Sync,
     most: usize,
-    scratch: &mut Vec<Entry>,
+    split: Split,
+    scratch: &mut FillScratch,
 ) -> Option<(Vec<u32>, Vec<Entry>, Vec<f32>)> {
-    let tasks = rayon::current_num_threads().clamp(1, texels.max(1));
-    let runs: Vec<Range<usize>> = (0..tasks)
-        .map(|t| t * texels / tasks..(t + 1) * texels / tasks)
-        .collect();
-    let counts: Vec<Vec<u32>> = (runs.par_iter())
-        .map(|run| {
-            let mut counts = vec![0u32; run.len()];
-            placements.for_each(faces, run.clone(), |k, _| counts[k - run.start] += 1);
-            counts
-        })
-        .collect();
-    let run_totals: Vec<usize> = (counts.iter())
-        .map(|c| c.iter().map(|&c| c as usize).sum())
-        .collect();
-    let total: usize = run_totals.iter().sum();
-    if total > most {
-        return None;
+    let FillScratch {
+        counts,
+        raw,
+        listed,
+    } = scratch;
+    let parts = placements.parts(split.parts);
+    // Each part's entries per texel.
+    counts.resize_with(parts.len(), Vec::new);
+    counts.truncate(parts.len());
+    (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, counts)| {
+        counts.clear();
+        counts.resize(texels, 0);
+        part.for_each(faces, |k, _| counts[k] += 1);
+    });
+    // Each part's first place in each list, and where the lists start.
+    raw.clear();
+    raw.reserve(texels + 1);
+    raw.push(0);
+    let mut at = 0usize;
+    for k in 0..texels {
+        for counts in counts.iter_mut() {
+            let n = counts[k] as usize;
+            counts[k] = at as u32;
+            at += n;
+        }
+        if at > most {
+            return None;
+        }
+        raw.push(at);
     }
-    // Every run's lists in the scratch, then cut there.
-    scratch.clear();
-    scratch.resize(total, Entry::default());
-    let mut slices = Vec::with_capacity(tasks);
-    let mut rest = scratch.as_mut_slice();
-    for &run_total in &run_totals {
-        let (mine, tail) = rest.split_at_mut(run_total);
-        slices.push(mine);
-        rest = tail;
-    }
-    let cut: Vec<(usize, Vec<u32>, Vec<f32>)> = (runs.par_iter().zip(counts).zip(slices))
-        .map(|((run, counts), entries)| {
-            let mut cursors = Vec::with_capacity(counts.len());
-            let mut start = 0u32;
-            for &count in &counts {
-                cursors.push(start);
-                start += count;
-            }
-            placements.for_each(faces, run.clone(), |k, i| {
-                let cursor = &mut cursors[k - run.start];
-                entries[*cursor as usize] = entry(i);
-                *cursor += 1;
-            });
-            cut_lists(&counts, entries)
-        })
-        .collect();
-    // The runs' kept lists one after the other.
-    let kept = cut.iter().map(|(kept, _, _)| kept).sum();
-    let mut starts = Vec::with_capacity(texels + 1);
-    let mut entries = Vec::with_capacity(kept);
-    let mut complete_within = Vec::with_capacity(texels);
-    starts.push(0);
-    let mut from = 0;
-    for ((kept, run_starts, run_complete), run_total) in cut.into_iter().zip(run_totals) {
-        let base = entries.len() as u32;
-        starts.extend(run_starts[1..].iter().map(|&s| base + s));
-        entries.extend_from_slice(&scratch[from..from + kept]);
-        complete_within.extend_from_slice(&run_complete);
-        from += run_total;
-    }
-    Some((starts, entries, complete_within))
+    // Every part writes its entries, in sphere order, at its places.
+    listed.clear();
+    listed.resize_with(at, || AtomicU64::new(0));
+    let listed = &listed[..];
+    (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, cursors)| {
+        part.for_each(faces, |k, i| {
+            listed[cursors[k] as usize].store(pack(entry(i)), Relaxed);
+            cursors[k] += 1;
+        });
+    });
+    Some(cut_lists(raw, listed, split.runs))
 }
 
-/// The lists of `counts` entries each, one after another in `entries`, each
-/// cut to its nearest [`MOST_LISTED`] and moved to the front in place: how
-/// many are kept, their starts, and each list's nearest distance left out.
-/// A list keeps its order (the spheres', which is the grid's cell order)
-/// unless it is cut.
-fn cut_lists(counts: &[u32], entries: &mut [Entry]) -> (usize, Vec<u32>, Vec<f32>) {
-    let mut starts = Vec::with_capacity(counts.len() + 1);
-    let mut complete_within = Vec::with_capacity(counts.len());
-    let (mut from, mut end) = (0, 0);
-    starts.push(0);
-    for &count in counts {
-        let list = &mut entries[from..from + count as usize];
-        if list.len() > MOST_LISTED {
-            list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
-            complete_within.push(list[MOST_LISTED].nearest);
-        } else {
-            complete_within.push(f32::INFINITY);
+/// How the fill shares its work: the parts of the spheres that count and
+/// write entries, and the runs of texels whose lists are cut.
+#[derive(Clone, Copy, Debug)]
+struct Split {
+    parts: usize,
+    runs: usize,
+}
+
+impl Split {
+    /// A few of each per thread, so that uneven ones still share the work,
+    /// but no more parts than keep their counts within
+    /// [`COUNT_BYTES_PER_SPHERE`].
+    fn for_threads(spheres: usize, texels: usize, threads: usize) -> Self {
+        let affordable = spheres * COUNT_BYTES_PER_SPHERE / (4 * texels.max(1));
+        Split {
+            parts: (PARTS_PER_THREAD * threads).min(affordable).max(1),
+            runs: PARTS_PER_THREAD * threads,
         }
-        let kept = list.len().min(MOST_LISTED);
-        entries.copy_within(from..from + kept, end);
-        from += count as usize;
-        end += kept;
-        starts.push(end as u32);
     }
-    (end, starts, complete_within)
+}
+
+/// The lists `listed[raw[k]..raw[k + 1]]`, each cut to its nearest
+/// [`MOST_LISTED`]: the kept lists' starts, their entries, and each list's
+/// nearest distance left out. A list keeps its order (the spheres', which
+/// is the grid's cell order) unless it is cut.
+fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> (Vec<u32>, Vec<Entry>, Vec<f32>) {
+    let texels = raw.len() - 1;
+    let kept = |k: usize| (raw[k + 1] - raw[k]).min(MOST_LISTED);
+    let mut starts = Vec::with_capacity(texels + 1);
+    starts.push(0u32);
+    let mut total = 0;
+    for k in 0..texels {
+        total += kept(k);
+        starts.push(total as u32);
+    }
+    // Runs of texels with equal numbers of entries before the cut, each
+    // with its own part of the kept entries and of the distances left out.
+    let runs = runs.max(1);
+    let ends: Vec<usize> = (1..=runs)
+        .map(|r| match r {
+            _ if r == runs => texels,
+            _ => raw
+                .partition_point(|&e| e < raw[texels] * r / runs)
+                .min(texels),
+        })
+        .collect();
+    let mut entries = vec![Entry::default(); total];
+    let mut complete_within = vec![f32::INFINITY; texels];
+    let mut tasks = Vec::with_capacity(runs);
+    let (mut rest, mut rest_complete, mut from) = (&mut entries[..], &mut complete_within[..], 0);
+    for &end in &ends {
+        let end = end.max(from);
+        let (mine, tail) = rest.split_at_mut((starts[end] - starts[from]) as usize);
+        let (mine_complete, tail_complete) = rest_complete.split_at_mut(end - from);
+        tasks.push((from..end, mine, mine_complete));
+        (rest, rest_complete, from) = (tail, tail_complete, end);
+    }
+    tasks
+        .into_par_iter()
+        .for_each(|(run, out, complete_within)| {
+            let mut list = Vec::new();
+            let mut at = 0;
+            for (k, complete) in run.zip(complete_within) {
+                list.clear();
+                list.extend(
+                    listed[raw[k]..raw[k + 1]]
+                        .iter()
+                        .map(|e| unpack(e.load(Relaxed))),
+                );
+                if list.len() > MOST_LISTED {
+                    list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
+                    *complete = list[MOST_LISTED].nearest;
+                }
+                let kept = list.len().min(MOST_LISTED);
+                out[at..at + kept].copy_from_slice(&list[..kept]);
+                at += kept;
+            }
+        });
+    (starts, entries, complete_within)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Random rectangles of texels on two faces, some spheres on both.
+    fn placements(spheres: u32, seed: u64) -> (Vec<Span>, Vec<(u32, Span)>, Vec<Entry>) {
+        let mut state = seed;
+        let mut next = |n: u32| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 33) % u64::from(n)) as u32
+        };
+        let span = |next: &mut dyn FnMut(u32) -> u32| {
+            let (face, lo) = (next(2) as u8, [next(16), next(16)]);
+            let hi = lo.map(|l| (l + next(4)).min(15));
+            Span {
+                face,
+                lo,
+                hi,
+                listed: true,
+            }
+        };
+        let spans: Vec<Span> = (0..spheres)
+            .map(|_| match next(8) {
+                0 => Span::default(),
+                _ => span(&mut next),
+            })
+            .collect();
+        let several: Vec<(u32, Span)> = (0..spheres / 10)
+            .flat_map(|_| {
+                let i = next(spheres);
+                [(i, span(&mut next)), (i, span(&mut next))]
+            })
+            .collect();
+        let entries = (0..spheres)
+            .map(|sphere| Entry {
+                sphere,
+                nearest: next(1000) as f32,
+            })
+            .collect();
+        (spans, several, entries)
+    }
+
+    fn two_faces() -> [Face; 6] {
+        let mut faces = [Face::default(); 6];
+        for (f, face) in faces.iter_mut().take(2).enumerate() {
+            face.texels = [16, 16];
+            face.first = f * 256;
+        }
+        faces
+    }
+
+    /// Each texel's list as one sphere at a time would build it: in sphere
+    /// order, spheres on several faces last, cut to the nearest.
+    fn one_by_one(faces: &[Face; 6], p: &Placements, entries: &[Entry]) -> Vec<(Vec<u32>, f32)> {
+        let mut lists = vec![Vec::new(); 512];
+        for (i, span) in p.spans.iter().enumerate().filter(|(_, s)| s.listed) {
+            span.for_each(faces, |k| lists[k].push(entries[i]));
+        }
+        for &(i, span) in p.several {
+            span.for_each(faces, |k| lists[k].push(entries[i as usize]));
+        }
+        (lists.into_iter())
+            .map(|mut list| {
+                let mut complete = f32::INFINITY;
+                if list.len() > MOST_LISTED {
+                    list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
+                    complete = list[MOST_LISTED].nearest;
+                    list.truncate(MOST_LISTED);
+                }
+                (list.iter().map(|e| e.sphere).collect(), complete)
+            })
+            .collect()
+    }
+
+    /// However the spheres and texels are split, the lists are those built
+    /// one sphere at a time, long lists cut included.
+    #[test]
+    fn lists_do_not_depend_on_how_the_work_is_split() {
+        let faces = two_faces();
+        for (spheres, seed) in [(0, 1), (7, 2), (300, 3), (3000, 4)] {
+            let (spans, several, entries) = placements(spheres, seed);
+            let p = Placements {
+                spans: &spans,
+                several: &several,
+            };
+            let want = one_by_one(&faces, &p, &entries);
+            assert!(spheres < 3000 || want.iter().any(|(_, c)| c.is_finite()));
+            for (parts, runs) in [(1, 1), (2, 3), (7, 2), (64, 9)] {
+                let split = Split { parts, runs };
+                let entry = |i: u32| entries[i as usize];
+                let mut scratch = FillScratch::default();
+                let (starts, got, complete) =
+                    fill_lists(&faces, 512, &p, entry, usize::MAX, split, &mut scratch).unwrap();
+                for (k, (list, within)) in want.iter().enumerate() {
+                    let mine = &got[starts[k] as usize..starts[k + 1] as usize];
+                    let mine: Vec<u32> = mine.iter().map(|e| e.sphere).collect();
+                    assert_eq!(
+                        (&mine, complete[k]),
+                        (list, *within),
+                        "{spheres} {split:?} {k}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn too_many_entries_give_no_lists() {
+        let faces = two_faces();
+        let (spans, several, entries) = placements(300, 5);
+        let p = Placements {
+            spans: &spans,
+            several: &several,
+        };
+        let entry = |i: u32| entries[i as usize];
+        let split = Split { parts: 3, runs: 2 };
+        let mut scratch = FillScratch::default();
+        assert!(fill_lists(&faces, 512, &p, entry, 299, split, &mut scratch).is_none());
+    }
 }
