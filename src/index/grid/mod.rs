@@ -14,6 +14,11 @@
 //! brute force uses, under the same (t, id) order, and the walk visits every
 //! cell a rounded hit could lie in (see the pad and slack in [`build`]), so the
 //! grid returns exactly the sphere and t that [`super::BruteForce`] returns.
+//! The walks also reach one step of `R` past the t they search to (and
+//! start one below their t_min): a hit's t is rounded to `R`, so a sphere
+//! whose rounded t ties the best one's, and whose lower id wins the tie,
+//! may truly lie half a step beyond it, which on a ray much longer than the
+//! spheres are wide (an origin far from them) spans several cells.
 
 mod build;
 mod cone;
@@ -401,10 +406,10 @@ impl<R: Real> VoxelHashGrid<R> {
         let mut mailbox = Mailbox::new();
         for level in &self.levels {
             let slack = level.slack / wide.length;
-            let reach = nearest.best.map_or(t_max, |b| b.t).to_f64() + slack;
+            let reach = nearest.best.map_or(t_max, |b| b.t).next_up().to_f64() + slack;
             level.walk(
                 &wide,
-                t_min.to_f64() - slack,
+                t_min.next_down().to_f64() - slack,
                 reach,
                 self.empty_space,
                 |ids| {
@@ -413,7 +418,9 @@ impl<R: Real> VoxelHashGrid<R> {
                             test(i, &mut nearest);
                         }
                     }
-                    nearest.best.map_or(f64::INFINITY, |b| b.t.to_f64() + slack)
+                    nearest
+                        .best
+                        .map_or(f64::INFINITY, |b| b.t.next_up().to_f64() + slack)
                 },
             );
         }
@@ -491,7 +498,7 @@ impl<R: Real> VoxelHashGrid<R> {
         level.walk(
             wide,
             -slack,
-            t_max.to_f64() + slack,
+            t_max.next_up().to_f64() + slack,
             self.empty_space,
             |ids| {
                 blocker = ids.iter().copied().find(|&i| {

@@ -103,7 +103,7 @@ struct Groups<R: Real> {
 
 impl<R: Real> Searching for Groups<R> {
     fn t_min(&self) -> f64 {
-        self.groups[0].t_min.to_f64()
+        self.groups[0].t_min.next_down().to_f64()
     }
 
     /// −∞ for every ray once the budget is spent: the walk ends.
@@ -113,7 +113,7 @@ impl<R: Real> Searching for Groups<R> {
             return f64::NEG_INFINITY;
         }
         let lanes = &self.groups[i / LANES];
-        lanes.best_t[i % LANES].min(lanes.t_max).to_f64()
+        lanes.best_t[i % LANES].min(lanes.t_max).next_up().to_f64()
     }
 
     #[inline(always)]

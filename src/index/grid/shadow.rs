@@ -97,7 +97,7 @@ struct ShadowGroups<R: Real> {
 impl<R: Real> Searching for ShadowGroups<R> {
     /// The walk runs from each ray's end (t' = 0) to its origin (t' = 1).
     fn t_min(&self) -> f64 {
-        0.0
+        (R::one() - R::one().next_up()).to_f64()
     }
 
     /// −∞ for a blocked ray, and for every ray once the budget is spent.
