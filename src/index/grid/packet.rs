@@ -101,6 +101,8 @@ struct Groups<R: Real> {
     budget: TestBudget,
 }
 
+/// Both ends reach one step of `R` beyond the rays' own (a hit's t is
+/// rounded; see the grid's module docs).
 impl<R: Real> Searching for Groups<R> {
     fn t_min(&self) -> f64 {
         self.groups[0].t_min.next_down().to_f64()

@@ -95,7 +95,9 @@ struct ShadowGroups<R: Real> {
 }
 
 impl<R: Real> Searching for ShadowGroups<R> {
-    /// The walk runs from each ray's end (t' = 0) to its origin (t' = 1).
+    /// The walk runs from each ray's end (t' = 0) to its origin (t' = 1),
+    /// from one step of `R` before the end: a blocker's t is rounded below
+    /// 1 by up to half a step (see the grid's module docs).
     fn t_min(&self) -> f64 {
         (R::one() - R::one().next_up()).to_f64()
     }
