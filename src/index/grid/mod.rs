@@ -15,10 +15,7 @@
 //! cell a rounded hit could lie in (see the pad and slack in [`build`]), so the
 //! grid returns exactly the sphere and t that [`super::BruteForce`] returns.
 //! The walks also reach one step of `R` past the t they search to (and
-//! start one below their t_min): a hit's t is rounded to `R`, so a sphere
-//! whose rounded t ties the best one's, and whose lower id wins the tie,
-//! may truly lie half a step beyond it, which on a ray much longer than the
-//! spheres are wide (an origin far from them) spans several cells.
+//! start one below their t_min; `search_end` and `search_start` say why).
 
 mod build;
 mod cone;
@@ -122,6 +119,23 @@ pub struct VoxelHashGrid<R: Real> {
     /// Candidate tests one call for many rays may make ([`TestBudget`]).
     packet_tests: u64,
     lights: Vec<LightBuffer<R>>,
+}
+
+/// The t (in f64) a walk for hits whose rounded t is at most `t` must
+/// reach: one step of `R` beyond `t`. A hit's t is rounded to `R`, so a
+/// sphere whose rounded t ties the best one's, and whose lower id wins the
+/// tie, may truly lie half a step beyond it, which on a ray much longer than
+/// the spheres are wide (an origin far from them) spans several cells.
+#[inline(always)]
+fn search_end<R: Real>(t: R) -> f64 {
+    t.next_up().to_f64()
+}
+
+/// The t a walk for hits whose rounded t is at least `t` starts from: one
+/// step of `R` before it, for the same reason as [`search_end`].
+#[inline(always)]
+fn search_start<R: Real>(t: R) -> f64 {
+    t.next_down().to_f64()
 }
 
 /// The last sphere tested per slot: a sphere spanning several cells along a
@@ -406,10 +420,10 @@ impl<R: Real> VoxelHashGrid<R> {
         let mut mailbox = Mailbox::new();
         for level in &self.levels {
             let slack = level.slack / wide.length;
-            let reach = nearest.best.map_or(t_max, |b| b.t).next_up().to_f64() + slack;
+            let reach = search_end(nearest.best.map_or(t_max, |b| b.t)) + slack;
             level.walk(
                 &wide,
-                t_min.next_down().to_f64() - slack,
+                search_start(t_min) - slack,
                 reach,
                 self.empty_space,
                 |ids| {
@@ -420,7 +434,7 @@ impl<R: Real> VoxelHashGrid<R> {
                     }
                     nearest
                         .best
-                        .map_or(f64::INFINITY, |b| b.t.next_up().to_f64() + slack)
+                        .map_or(f64::INFINITY, |b| search_end(b.t) + slack)
                 },
             );
         }
@@ -498,7 +512,7 @@ impl<R: Real> VoxelHashGrid<R> {
         level.walk(
             wide,
             -slack,
-            t_max.next_up().to_f64() + slack,
+            search_end(t_max) + slack,
             self.empty_space,
             |ids| {
                 blocker = ids.iter().copied().find(|&i| {

@@ -101,11 +101,9 @@ struct Groups<R: Real> {
     budget: TestBudget,
 }
 
-/// Both ends reach one step of `R` beyond the rays' own (a hit's t is
-/// rounded; see the grid's module docs).
 impl<R: Real> Searching for Groups<R> {
     fn t_min(&self) -> f64 {
-        self.groups[0].t_min.next_down().to_f64()
+        super::search_start(self.groups[0].t_min)
     }
 
     /// −∞ for every ray once the budget is spent: the walk ends.
@@ -115,7 +113,7 @@ impl<R: Real> Searching for Groups<R> {
             return f64::NEG_INFINITY;
         }
         let lanes = &self.groups[i / LANES];
-        lanes.best_t[i % LANES].min(lanes.t_max).next_up().to_f64()
+        super::search_end(lanes.best_t[i % LANES].min(lanes.t_max))
     }
 
     #[inline(always)]

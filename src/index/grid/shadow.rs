@@ -95,11 +95,10 @@ struct ShadowGroups<R: Real> {
 }
 
 impl<R: Real> Searching for ShadowGroups<R> {
-    /// The walk runs from each ray's end (t' = 0) to its origin (t' = 1),
-    /// from one step of `R` before the end: a blocker's t is rounded below
-    /// 1 by up to half a step (see the grid's module docs).
+    /// The walk runs from each ray's end (t' = 1 − t = 0) to its origin
+    /// (t' = 1), from the end of a search up to t = 1 ([`super::search_end`]).
     fn t_min(&self) -> f64 {
-        (R::one() - R::one().next_up()).to_f64()
+        1.0 - super::search_end(R::one())
     }
 
     /// −∞ for a blocked ray, and for every ray once the budget is spent.
