@@ -675,19 +675,25 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> (Vec<u32>, Vec
             let mut list = Vec::new();
             let mut at = 0;
             for (k, complete) in run.zip(complete_within) {
-                list.clear();
-                list.extend(
-                    listed[raw[k]..raw[k + 1]]
-                        .iter()
-                        .map(|e| unpack(e.load(Relaxed))),
-                );
-                if list.len() > MOST_LISTED {
-                    list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
-                    *complete = list[MOST_LISTED].nearest;
+                let entries = listed[raw[k]..raw[k + 1]]
+                    .iter()
+                    .map(|e| unpack(e.load(Relaxed)));
+                if entries.len() <= MOST_LISTED {
+                    // Kept whole: straight to its place.
+                    let n = entries.len();
+                    out[at..at + n]
+                        .iter_mut()
+                        .zip(entries)
+                        .for_each(|(o, e)| *o = e);
+                    at += n;
+                    continue;
                 }
-                let kept = list.len().min(MOST_LISTED);
-                out[at..at + kept].copy_from_slice(&list[..kept]);
-                at += kept;
+                list.clear();
+                list.extend(entries);
+                list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
+                *complete = list[MOST_LISTED].nearest;
+                out[at..at + MOST_LISTED].copy_from_slice(&list[..MOST_LISTED]);
+                at += MOST_LISTED;
             }
         });
     (starts, entries, complete_within)
