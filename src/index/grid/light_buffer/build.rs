@@ -305,6 +305,7 @@ impl Face {
 #[derive(Default)]
 pub(in crate::index::grid) struct Scratch {
     is_short: Vec<bool>,
+    placed_apart: Vec<bool>,
     seen: Vec<Seen>,
     spans: Vec<Span>,
     fill: FillScratch,
@@ -323,6 +324,7 @@ impl<R: Real> LightBuffer<R> {
         let light64 = light.to_dvec3();
         let Scratch {
             is_short,
+            placed_apart,
             seen,
             spans,
             fill,
@@ -385,12 +387,12 @@ impl<R: Real> LightBuffer<R> {
                     .map(move |span| (i as u32, span))
             })
             .collect();
-        let placed_apart: Vec<bool> = {
-            let mut v = vec![false; spheres.len()];
-            several.iter().for_each(|&(i, _)| v[i as usize] = true);
-            v
-        };
-        let mut always: Vec<Entry> = (seen.iter().zip(spans).zip(&placed_apart))
+        placed_apart.clear();
+        placed_apart.resize(spheres.len(), false);
+        several
+            .iter()
+            .for_each(|&(i, _)| placed_apart[i as usize] = true);
+        let mut always: Vec<Entry> = (seen.iter().zip(spans).zip(&*placed_apart))
             .enumerate()
             .filter(|(_, ((_, span), &apart))| span.texels() == 0 && !apart)
             .map(|(i, ((s, _), _))| Entry {
