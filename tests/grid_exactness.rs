@@ -603,6 +603,54 @@ fn check_light_buffer(shapes: &[Ellipsoid<f32>], light: Vec3, origins: &[Vec3]) 
     grid.light_buffers().lights == 1
 }
 
+/// Lights get buffers in turn while their bytes fit the index's budget: the
+/// same lights, and bytes, as building each alone and keeping the longest
+/// run of them that fits, and never more than the budget.
+#[test]
+fn light_buffers_stay_within_their_budget_light_by_light() {
+    let mut rng = voxtrace::rng::Rng::new(11);
+    let mut coordinate = || rng.range(-10.0, 10.0) as f32;
+    let shapes: Vec<Ellipsoid<f32>> = (0..20_000)
+        .map(|_| {
+            let center = Vec3::new(coordinate(), coordinate(), coordinate());
+            Ellipsoid::new(center, Vec3::splat(0.05))
+        })
+        .collect();
+    let lights: Vec<Vec3> = (0..12)
+        .map(|i| Vec3::new(30.0 - 5.0 * i as f32, 20.0, 40.0 - 3.0 * i as f32))
+        .collect();
+    let budget = (voxtrace::limits::LIGHT_BUFFER_BYTES_PER_SPHERE * shapes.len())
+        .max(voxtrace::limits::LIGHT_BUFFER_MIN_BYTES);
+    let alone: Vec<usize> = (lights.iter())
+        .map(|&l| {
+            VoxelHashGrid::new(&shapes)
+                .with_lights(&[l])
+                .light_buffers()
+                .bytes
+        })
+        .collect();
+    assert!(
+        alone.iter().all(|&b| b > 0),
+        "every light gets a buffer alone"
+    );
+    let mut want = (0, 0);
+    for &bytes in &alone {
+        if want.1 + bytes > budget {
+            break;
+        }
+        want = (want.0 + 1, want.1 + bytes);
+    }
+    assert!(
+        0 < want.0 && want.0 < lights.len(),
+        "the budget cuts the run: {want:?}"
+    );
+    let together = VoxelHashGrid::new(&shapes)
+        .with_lights(&lights)
+        .light_buffers();
+    assert_eq!((together.lights, together.bytes), want);
+    assert!(together.bytes <= budget);
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(96))]
 

@@ -50,6 +50,17 @@ mod build;
 
 pub(super) use build::Scratch;
 
+/// Why a light gets no buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum NoBuffer {
+    /// Its spheres do not suit one: too many that every ray would test,
+    /// lists too long, or nothing to list.
+    Unsuited,
+    /// Its lists, counted, would take more bytes than the room it was given;
+    /// it is refused before they are filled.
+    NoRoom,
+}
+
 use super::{Candidate, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
 use glam::DVec3;

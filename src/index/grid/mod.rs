@@ -30,7 +30,7 @@ mod walk;
 use super::{Answered, Hit, LightBuffers, SphereIndex};
 use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
-use light_buffer::LightBuffer;
+use light_buffer::{LightBuffer, NoBuffer};
 pub use packet::RAYS as PACKET_RAYS;
 use rayon::prelude::*;
 use table::BlockTable;
@@ -262,9 +262,12 @@ impl<R: Real> VoxelHashGrid<R> {
     ///
     /// Buffers are built light by light (each in parallel) while their
     /// bytes stay within [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`] (or
-    /// [`crate::limits::LIGHT_BUFFER_MIN_BYTES`] in all);
-    /// shadow rays toward the other lights walk the grid. A light whose
-    /// buffer would be tested in full by too many rays gets none either.
+    /// [`crate::limits::LIGHT_BUFFER_MIN_BYTES`] in all): the first light
+    /// whose lists, counted, would not fit in what is left gets none, and
+    /// neither do the lights after it, so no buffer is filled only to be
+    /// dropped and the bound holds while they are built too. Shadow rays
+    /// toward the other lights walk the grid. A light whose buffer would
+    /// be tested in full by too many rays gets none either.
     pub fn with_lights(mut self, lights: &[V3<R>]) -> Self {
         let budget = (crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE * self.spheres.len())
             .max(crate::limits::LIGHT_BUFFER_MIN_BYTES);
@@ -274,15 +277,15 @@ impl<R: Real> VoxelHashGrid<R> {
             if self.light_buffer(light).is_some() {
                 continue;
             }
-            let Some(buffer) = LightBuffer::new(&self.spheres, &self.short, light, &mut scratch)
-            else {
-                continue;
-            };
-            used += buffer.bytes();
-            if used > budget {
-                break;
+            let room = budget - used;
+            match LightBuffer::new(&self.spheres, &self.short, light, room, &mut scratch) {
+                Ok(buffer) if buffer.bytes() <= room => {
+                    used += buffer.bytes();
+                    self.lights.push(buffer);
+                }
+                Ok(_) | Err(NoBuffer::NoRoom) => break,
+                Err(NoBuffer::Unsuited) => continue,
             }
-            self.lights.push(buffer);
         }
         self
     }
@@ -534,7 +537,36 @@ impl<R: Real> VoxelHashGrid<R> {
 
 #[cfg(test)]
 mod tests {
-    use super::Candidate;
+    use super::light_buffer::{NoBuffer, Scratch};
+    use super::{Candidate, LightBuffer, VoxelHashGrid};
+    use crate::geometry::Ellipsoid;
+    use glam::Vec3;
+
+    /// The room a buffer is refused for is counted before its lists are
+    /// filled, exactly: a buffer fits the bytes it holds, and not one fewer.
+    #[test]
+    fn a_light_buffer_fits_exactly_the_bytes_it_holds() {
+        let mut rng = crate::rng::Rng::new(3);
+        let mut coordinate = || rng.range(-4.0, 4.0) as f32;
+        let shapes: Vec<Ellipsoid<f32>> = (0..5_000)
+            .map(|_| {
+                let center = Vec3::new(coordinate(), coordinate(), coordinate());
+                Ellipsoid::new(center, Vec3::new(0.05, 0.08, 0.03))
+            })
+            .collect();
+        let grid = VoxelHashGrid::new(&shapes);
+        let scratch = &mut Scratch::default();
+        // Far off, and just outside a sphere (which every ray then tests).
+        let beside = shapes[17].center + Vec3::new(0.1, 0.0, 0.0);
+        for light in [Vec3::new(9.0, 7.0, 12.0), beside] {
+            let build = |room: usize, scratch: &mut Scratch| {
+                LightBuffer::new(&grid.spheres, &grid.short, light, room, scratch)
+            };
+            let bytes = build(usize::MAX, scratch).unwrap().bytes();
+            assert_eq!(build(bytes, scratch).unwrap().bytes(), bytes, "{light}");
+            assert_eq!(build(bytes - 1, scratch).err(), Some(NoBuffer::NoRoom));
+        }
+    }
 
     /// The alignment adds no padding: two f32 copies to a cache line, and
     /// the bytes per sphere the index reports stay what they were.

@@ -4,7 +4,7 @@
 //! lists counted and filled in sphere order; each list is then cut to its
 //! nearest [`MOST_LISTED`].
 
-use super::{Entry, Face, LightBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
+use super::{Entry, Face, LightBuffer, NoBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
 use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
@@ -313,14 +313,15 @@ pub(in crate::index::grid) struct Scratch {
 
 impl<R: Real> LightBuffer<R> {
     /// The buffer of `light` over `spheres` (the grid's copies), with the
-    /// grid's `short` list tested by every ray; None where too many spheres
-    /// would be, or the lists would hold too many entries.
+    /// grid's `short` list tested by every ray, holding at most `room`
+    /// bytes ([`LightBuffer::bytes`]).
     pub(in crate::index::grid) fn new(
         spheres: &[Candidate<R>],
         short: &[u32],
         light: V3<R>,
+        room: usize,
         scratch: &mut Scratch,
-    ) -> Option<Self> {
+    ) -> Result<Self, NoBuffer> {
         let light64 = light.to_dvec3();
         let Scratch {
             is_short,
@@ -345,7 +346,7 @@ impl<R: Real> LightBuffer<R> {
             .reduce(|| 0.0, f64::max)
             * (1.0 + 1.0 / 1024.0);
         if !(farthest.is_finite() && farthest > 0.0) {
-            return None;
+            return Err(NoBuffer::Unsuited);
         }
         let near = farthest / NEAR_DIVISOR;
         // Each sphere as the light sees it, and what their rectangles cover.
@@ -401,7 +402,7 @@ impl<R: Real> LightBuffer<R> {
             })
             .collect();
         if always.len() > MOST_ALWAYS {
-            return None;
+            return Err(NoBuffer::Unsuited);
         }
         // Their nearest distances may be negative (the light inside a ball).
         always.sort_unstable_by(|a, b| {
@@ -409,7 +410,12 @@ impl<R: Real> LightBuffer<R> {
                 .total_cmp(&b.nearest)
                 .then(a.sphere.cmp(&b.sphere))
         });
+        always.shrink_to_fit();
         let texels = faces.iter().map(Face::texel_count).sum();
+        // The bytes of everything but the lists' entries: the every-ray
+        // list, the lists' starts and their distances left out.
+        let fixed = size_of::<Entry>() * always.len() + size_of::<u32>() * (2 * texels + 1);
+        let fits = |kept: usize| fixed + size_of::<Entry>() * kept <= room;
         let entry = |i: u32| Entry {
             sphere: i,
             nearest: seen[i as usize].nearest,
@@ -420,17 +426,17 @@ impl<R: Real> LightBuffer<R> {
         };
         let most = MOST_LISTED_PER_SPHERE * spheres.len();
         let split = Split::for_threads(spheres.len(), texels, rayon::current_num_threads());
-        let (starts, entries, complete_within) =
-            fill_lists(&faces, texels, &placements, entry, most, split, fill)?;
-        Some(LightBuffer {
+        let bounds = ListBounds { most, fits };
+        let lists = fill_lists(&faces, texels, &placements, entry, bounds, split, fill)?;
+        Ok(LightBuffer {
             light,
             light64,
             farthest,
             always,
             faces,
-            starts,
-            entries,
-            complete_within,
+            starts: lists.starts,
+            entries: lists.entries,
+            complete_within: lists.complete_within,
         })
     }
 }
@@ -562,15 +568,18 @@ fn unpack(bits: u64) -> Entry {
 /// and each part writes its entries there, so every pass does the same
 /// work on each thread wherever the spheres' texels lie. The lists are
 /// then cut, in runs of texels holding equal numbers of entries.
+///
+/// Lists past their `bounds` are refused by the count alone, before any
+/// entry is written.
 fn fill_lists(
     faces: &[Face; 6],
     texels: usize,
     placements: &Placements,
     entry: impl Fn(u32) -> Entry + Sync,
-    most: usize,
+    bounds: ListBounds<impl FnOnce(usize) -> bool>,
     split: Split,
     scratch: &mut FillScratch,
-) -> Option<(Vec<u32>, Vec<Entry>, Vec<f32>)> {
+) -> Result<Lists, NoBuffer> {
     let FillScratch {
         counts,
         raw,
@@ -589,17 +598,22 @@ fn fill_lists(
     raw.clear();
     raw.reserve(texels + 1);
     raw.push(0);
-    let mut at = 0usize;
+    let (mut at, mut kept) = (0usize, 0usize);
     for k in 0..texels {
+        let list_start = at;
         for counts in counts.iter_mut() {
             let n = counts[k] as usize;
             counts[k] = at as u32;
             at += n;
         }
-        if at > most {
-            return None;
+        if at > bounds.most {
+            return Err(NoBuffer::Unsuited);
         }
+        kept += (at - list_start).min(MOST_LISTED);
         raw.push(at);
+    }
+    if !(bounds.fits)(kept) {
+        return Err(NoBuffer::NoRoom);
     }
     // Every part writes its entries, in sphere order, at its places.
     listed.clear();
@@ -611,7 +625,24 @@ fn fill_lists(
             cursors[k] += 1;
         });
     });
-    Some(cut_lists(raw, listed, split.runs))
+    Ok(cut_lists(raw, listed, split.runs))
+}
+
+/// How many entries a light's lists may take: at most `most` before the
+/// cut (past it, [`NoBuffer::Unsuited`]), and a number kept after it that
+/// `fits` the buffer's room (else [`NoBuffer::NoRoom`]).
+struct ListBounds<F> {
+    most: usize,
+    fits: F,
+}
+
+/// The texels' lists as a buffer keeps them: texel k lists
+/// `entries[starts[k]..starts[k + 1]]`, and `complete_within[k]` is how
+/// near to the light the first sphere left out of it comes.
+struct Lists {
+    starts: Vec<u32>,
+    entries: Vec<Entry>,
+    complete_within: Vec<f32>,
 }
 
 /// How the fill shares its work: the parts of the spheres that count and
@@ -639,7 +670,7 @@ impl Split {
 /// [`MOST_LISTED`]: the kept lists' starts, their entries, and each list's
 /// nearest distance left out. A list keeps its order (the spheres', which
 /// is the grid's cell order) unless it is cut.
-fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> (Vec<u32>, Vec<Entry>, Vec<f32>) {
+fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> Lists {
     let texels = raw.len() - 1;
     let kept = |k: usize| (raw[k + 1] - raw[k]).min(MOST_LISTED);
     let mut starts = Vec::with_capacity(texels + 1);
@@ -698,7 +729,11 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> (Vec<u32>, Vec
                 at += MOST_LISTED;
             }
         });
-    (starts, entries, complete_within)
+    Lists {
+        starts,
+        entries,
+        complete_within,
+    }
 }
 
 #[cfg(test)]
@@ -743,6 +778,14 @@ mod tests {
             })
             .collect();
         (spans, several, entries)
+    }
+
+    /// Bounds no list reaches.
+    fn ample() -> ListBounds<impl FnOnce(usize) -> bool> {
+        ListBounds {
+            most: usize::MAX,
+            fits: |_| true,
+        }
     }
 
     fn two_faces() -> [Face; 6] {
@@ -794,8 +837,12 @@ mod tests {
                 let split = Split { parts, runs };
                 let entry = |i: u32| entries[i as usize];
                 let mut scratch = FillScratch::default();
-                let (starts, got, complete) =
-                    fill_lists(&faces, 512, &p, entry, usize::MAX, split, &mut scratch).unwrap();
+                let lists = fill_lists(&faces, 512, &p, entry, ample(), split, &mut scratch);
+                let Lists {
+                    starts,
+                    entries: got,
+                    complete_within: complete,
+                } = lists.unwrap();
                 for (k, (list, within)) in want.iter().enumerate() {
                     let mine = &got[starts[k] as usize..starts[k + 1] as usize];
                     let mine: Vec<u32> = mine.iter().map(|e| e.sphere).collect();
@@ -820,6 +867,40 @@ mod tests {
         let entry = |i: u32| entries[i as usize];
         let split = Split { parts: 3, runs: 2 };
         let mut scratch = FillScratch::default();
-        assert!(fill_lists(&faces, 512, &p, entry, 299, split, &mut scratch).is_none());
+        let bounds = ListBounds {
+            most: 299,
+            fits: |_| true,
+        };
+        let fill = fill_lists(&faces, 512, &p, entry, bounds, split, &mut scratch);
+        assert_eq!(fill.err(), Some(NoBuffer::Unsuited));
+    }
+
+    /// A buffer's room is checked against the entries its lists keep once
+    /// cut: exactly that many fit, one fewer does not.
+    #[test]
+    fn lists_past_their_room_are_refused_before_they_are_filled() {
+        let faces = two_faces();
+        let (spans, several, entries) = placements(3000, 6);
+        let p = Placements {
+            spans: &spans,
+            several: &several,
+        };
+        let want: usize = one_by_one(&faces, &p, &entries)
+            .iter()
+            .map(|(list, _)| list.len())
+            .sum();
+        let entry = |i: u32| entries[i as usize];
+        let split = Split { parts: 3, runs: 2 };
+        let mut scratch = FillScratch::default();
+        let room = |kept_most: usize| ListBounds {
+            most: usize::MAX,
+            fits: move |kept: usize| kept <= kept_most,
+        };
+        let short = fill_lists(&faces, 512, &p, entry, room(want - 1), split, &mut scratch);
+        assert_eq!(short.err(), Some(NoBuffer::NoRoom));
+        // Refused by the count: no entry was written.
+        assert!(scratch.listed.is_empty());
+        let lists = fill_lists(&faces, 512, &p, entry, room(want), split, &mut scratch);
+        assert_eq!(lists.unwrap().entries.len(), want);
     }
 }
