@@ -50,6 +50,10 @@ mod build;
 
 pub(super) use build::Scratch;
 
+use super::{Candidate, Tests};
+use crate::geometry::{Ray, Real, Vec3Ops, V3};
+use glam::DVec3;
+
 /// Why a light gets no buffer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum NoBuffer {
@@ -60,10 +64,6 @@ pub(super) enum NoBuffer {
     /// it is refused before they are filled.
     NoRoom,
 }
-
-use super::{Candidate, Tests};
-use crate::geometry::{Ray, Real, Vec3Ops, V3};
-use glam::DVec3;
 
 /// How far a sphere's texel rectangle is widened, in face coordinates: four
 /// times the direction error of a shadow ray's points (module docs).

@@ -410,6 +410,7 @@ impl<R: Real> LightBuffer<R> {
                 .total_cmp(&b.nearest)
                 .then(a.sphere.cmp(&b.sphere))
         });
+        // Its bytes held are then its bytes counted.
         always.shrink_to_fit();
         let texels = faces.iter().map(Face::texel_count).sum();
         // The bytes of everything but the lists' entries: the every-ray
