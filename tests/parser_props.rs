@@ -53,7 +53,7 @@ proptest! {
         }
         if let Err(e) = parse(&bytes) {
             let lines = bytes.split(|&b| b == b'\n').count();
-            if matches!(e.kind, SceneErrorKind::MissingDirective { .. }) {
+            if matches!(e.kind, SceneErrorKind::Empty | SceneErrorKind::MissingDirective { .. }) {
                 prop_assert!((e.line, e.column) == (0, 0), "no line is to blame: {e}");
             } else {
                 prop_assert!(e.line >= 1 && e.line <= lines.max(1), "{e}");

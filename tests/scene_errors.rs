@@ -173,7 +173,11 @@ fn cases() -> Vec<Case> {
             1,
             |k| matches!(k, K::UnknownKeyword { found, suggestion: Some("SPHERE") } if found == "SPHERES"),
         ),
-        case("empty file", "", 0, 0, |k| {
+        case("empty file", "", 0, 0, |k| matches!(k, K::Empty)),
+        case("blank lines and comments only", "\n  \n# nothing\n", 0, 0, |k| {
+            matches!(k, K::Empty)
+        }),
+        case("only BACK", "BACK 0 0 0\n", 0, 0, |k| {
             matches!(k, K::MissingDirective { keyword: "NEAR", .. })
         }),
         case(
@@ -410,7 +414,7 @@ fn cli_exits_2_with_the_message_on_stderr() {
         let at = if c.line > 0 {
             format!(" --> {}:{}:{}\n", path.display(), c.line, c.column)
         } else {
-            format!("voxtrace: {}: the scene has no ", path.display())
+            format!("voxtrace: {}: the scene ", path.display())
         };
         assert!(stderr.contains(&at), "{}: {stderr}", c.name);
         assert!(out.stdout.is_empty());

@@ -268,6 +268,8 @@ fn http_framing_expect_continue_chunked_and_http10() {
 
     let no_length = client.request("POST", "/render", &[], b"");
     assert_eq!(no_length.status, 400, "an empty scene is a scene error");
+    let said = String::from_utf8_lossy(&no_length.body);
+    assert!(said.contains("the scene is empty"), "{said}");
     client.send(b"POST /render HTTP/1.1\r\nHost: t\r\n\r\n");
     assert_eq!(client.read_reply(false).status, 411);
 

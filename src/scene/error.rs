@@ -53,6 +53,8 @@ pub enum SceneErrorKind {
         keyword: &'static str,
         first_line: usize,
     },
+    /// No directive at all: the text is empty, or blank lines and comments.
+    Empty,
     /// A required directive never appeared; `example` is such a line.
     MissingDirective {
         keyword: &'static str,
@@ -137,7 +139,8 @@ impl SceneError {
         }
     }
 
-    /// Whether a line and column are at fault (all but a missing directive).
+    /// Whether a line and column are at fault (all but an empty scene and a
+    /// missing directive).
     pub fn is_located(&self) -> bool {
         self.line > 0
     }
@@ -178,6 +181,10 @@ impl fmt::Display for SceneErrorKind {
             Duplicate { keyword, first_line } => {
                 write!(f, "{keyword} is given again (first on line {first_line})")
             }
+            Empty => write!(
+                f,
+                "the scene is empty: it needs at least NEAR, LEFT, RIGHT, BOTTOM, TOP and RES lines, such as `NEAR 1`"
+            ),
             MissingDirective { keyword, example } => {
                 write!(f, "the scene has no {keyword} line: add one, such as `{example}`")
             }

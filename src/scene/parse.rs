@@ -909,6 +909,9 @@ impl SceneBuilder {
     }
 
     fn finish(self) -> Result<Scene, SceneError> {
+        if self.is_empty() {
+            return Err(SceneError::of_whole_scene(SceneErrorKind::Empty));
+        }
         let missing = |keyword: Keyword| {
             SceneError::of_whole_scene(SceneErrorKind::MissingDirective {
                 keyword: keyword.name(),
@@ -950,6 +953,22 @@ impl SceneBuilder {
             ambient: self.ambient.map_or(DVec3::ZERO, |(c, _)| c),
             output: self.output.map(|(name, _)| name),
         })
+    }
+
+    /// Whether no line said anything.
+    fn is_empty(&self) -> bool {
+        let given = [
+            self.near.is_some(),
+            self.left.is_some(),
+            self.right.is_some(),
+            self.bottom.is_some(),
+            self.top.is_some(),
+            self.resolution.is_some(),
+            self.background.is_some(),
+            self.ambient.is_some(),
+            self.output.is_some(),
+        ];
+        !given.contains(&true) && self.sphere_count == 0 && self.lights.is_empty()
     }
 }
 
