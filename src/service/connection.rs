@@ -42,6 +42,8 @@ pub fn serve(
         }
         conn.request_done();
     }
+    // Only a stop ends the loop: the client may have begun a request.
+    conn.close_unanswered();
 }
 
 /// Serves one request on a connection in the reserve (past the connection

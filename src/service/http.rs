@@ -349,6 +349,27 @@ impl Connection {
         }
     }
 
+    /// Ends a connection the server closes without answering, as it stops:
+    /// takes in what the client has already sent (a request begun, say),
+    /// so that the close reaches the client as an end and not as a reset.
+    /// Never waits: the reading side is shut first, and what arrives after
+    /// that is not looked for.
+    pub fn close_unanswered(&mut self) {
+        if self.stream.shutdown(Shutdown::Read).is_err()
+            || self.stream.set_nonblocking(true).is_err()
+        {
+            return;
+        }
+        let mut chunk = [0u8; READ_CHUNK];
+        let mut left = limits::LINGER_BYTES;
+        while left > 0 {
+            match (&*self.stream).read(&mut chunk) {
+                Ok(0) | Err(_) => return,
+                Ok(n) => left = left.saturating_sub(n),
+            }
+        }
+    }
+
     /// Whether body bytes have already arrived (then `100 Continue` is moot).
     pub fn has_pending(&self) -> bool {
         !self.pending.is_empty()
