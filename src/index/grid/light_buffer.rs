@@ -138,6 +138,14 @@ pub(super) struct LightBuffer<R: Real> {
     complete_within: Vec<f32>,
 }
 
+/// The bytes of a buffer's arrays: `always` and `entries` entries, `starts`
+/// list starts and `complete` distances left out.
+fn bytes_of(always: usize, entries: usize, starts: usize, complete: usize) -> usize {
+    size_of::<Entry>() * (always + entries)
+        + size_of::<u32>() * starts
+        + size_of::<f32>() * complete
+}
+
 /// The face a direction `x` from the light lies in (2·axis, plus 1 on the
 /// axis's negative side) and its coordinates there; None for zero.
 #[inline(always)]
@@ -165,9 +173,12 @@ impl<R: Real> LightBuffer<R> {
 
     /// Bytes the buffer holds.
     pub(super) fn bytes(&self) -> usize {
-        let entry = std::mem::size_of::<Entry>();
-        (self.always.capacity() + self.entries.capacity()) * entry
-            + 4 * (self.starts.capacity() + self.complete_within.capacity())
+        bytes_of(
+            self.always.capacity(),
+            self.entries.capacity(),
+            self.starts.capacity(),
+            self.complete_within.capacity(),
+        )
     }
 
     /// Whether a sphere blocks the shadow ray from `origin` to the light,

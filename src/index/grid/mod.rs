@@ -279,11 +279,11 @@ impl<R: Real> VoxelHashGrid<R> {
             }
             let room = budget - used;
             match LightBuffer::new(&self.spheres, &self.short, light, room, &mut scratch) {
-                Ok(buffer) if buffer.bytes() <= room => {
+                Ok(buffer) => {
                     used += buffer.bytes();
                     self.lights.push(buffer);
                 }
-                Ok(_) | Err(NoBuffer::NoRoom) => break,
+                Err(NoBuffer::NoRoom) => break,
                 Err(NoBuffer::Unsuited) => continue,
             }
         }

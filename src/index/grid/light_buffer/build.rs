@@ -4,7 +4,7 @@
 //! lists counted and filled in sphere order; each list is then cut to its
 //! nearest [`MOST_LISTED`].
 
-use super::{Entry, Face, LightBuffer, NoBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
+use super::{bytes_of, Entry, Face, LightBuffer, NoBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
 use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
@@ -413,10 +413,7 @@ impl<R: Real> LightBuffer<R> {
         // Its bytes held are then its bytes counted.
         always.shrink_to_fit();
         let texels = faces.iter().map(Face::texel_count).sum();
-        // The bytes of everything but the lists' entries: the every-ray
-        // list, the lists' starts and their distances left out.
-        let fixed = size_of::<Entry>() * always.len() + size_of::<u32>() * (2 * texels + 1);
-        let fits = |kept: usize| fixed + size_of::<Entry>() * kept <= room;
+        let fits = |kept: usize| bytes_of(always.len(), kept, texels + 1, texels) <= room;
         let entry = |i: u32| Entry {
             sphere: i,
             nearest: seen[i as usize].nearest,
