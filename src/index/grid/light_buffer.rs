@@ -47,12 +47,14 @@
 //! tests at most that many spheres here, whatever the scene.
 
 mod build;
+mod listed;
 
 pub(super) use build::Scratch;
 
 use super::{Candidate, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
 use glam::DVec3;
+use listed::{Listed, Steps};
 
 /// Why a light gets no buffer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,8 +77,10 @@ const TILE: usize = 8;
 /// Most spheres listed in one texel; past them a ray goes to the walk.
 const MOST_LISTED: usize = 48;
 
-/// One sphere in a list: its position in the grid's sphere array, and a
-/// distance its ball comes no nearer to the light than (rounded down).
+/// One sphere as the build handles it, and in the every-ray list: its
+/// position in the grid's sphere array, and a distance its ball comes no
+/// nearer to the light than (rounded down). The texels' lists keep it
+/// packed ([`Listed`]).
 #[derive(Clone, Copy, Debug, Default)]
 struct Entry {
     sphere: u32,
@@ -130,9 +134,10 @@ pub(super) struct LightBuffer<R: Real> {
     always: Vec<Entry>,
     faces: [Face; 6],
     /// Texel k lists `entries[starts[k]..starts[k + 1]]`, in the grid's
-    /// sphere order.
+    /// sphere order, packed by `steps`.
     starts: Vec<u32>,
-    entries: Vec<Entry>,
+    entries: Vec<Listed>,
+    steps: Steps,
     /// How near to the light the first sphere left out of texel k's list
     /// comes (+∞ where none was).
     complete_within: Vec<f32>,
@@ -141,7 +146,8 @@ pub(super) struct LightBuffer<R: Real> {
 /// The bytes of a buffer's arrays: `always` and `entries` entries, `starts`
 /// list starts and `complete` distances left out.
 fn bytes_of(always: usize, entries: usize, starts: usize, complete: usize) -> usize {
-    size_of::<Entry>() * (always + entries)
+    size_of::<Entry>() * always
+        + size_of::<Listed>() * entries
         + size_of::<u32>() * starts
         + size_of::<f32>() * complete
 }
@@ -200,22 +206,25 @@ impl<R: Real> LightBuffer<R> {
         // |o − L|·(1 + u) and the rounding of `distance`, with room.
         let within = distance * (1.0 + 1.0 / (1u64 << 20) as f64);
         let ray = Ray::new(origin, self.light - origin);
-        let mut blocks = |e: &Entry| {
+        let mut blocks = |sphere: u32| {
             budget.spend(1);
-            let frame = &spheres[e.sphere as usize].frame;
+            let frame = &spheres[sphere as usize].frame;
             frame.intersect(&ray, R::zero(), R::one()).is_some()
         };
         // The every-ray list is nearest first, so its first sphere beyond the
-        // origin ends it; a texel's list is in sphere order, each one checked.
+        // origin ends it; a texel's list is in sphere order, each one checked
+        // (by its step: a few more pass, none that would block is skipped).
         let nearer = |e: &&Entry| f64::from(e.nearest) <= within;
-        if self.always.iter().take_while(nearer).any(&mut blocks) {
+        if (self.always.iter().take_while(nearer)).any(|e| blocks(e.sphere)) {
             return Some(true);
         }
         let Some(k) = self.faces[f].texel(uv) else {
             return Some(false);
         };
         let list = &self.entries[self.starts[k] as usize..self.starts[k + 1] as usize];
-        if list.iter().filter(nearer).any(blocks) {
+        let (steps, reach) = (&self.steps, self.steps.step(within));
+        let mut listed = list.iter().filter(|&&l| steps.step_of(l) <= reach);
+        if listed.any(|&l| blocks(steps.sphere(l))) {
             return Some(true);
         }
         (f64::from(self.complete_within[k]) > within).then_some(false)

@@ -4,7 +4,10 @@
 //! lists counted and filled in sphere order; each list is then cut to its
 //! nearest [`MOST_LISTED`].
 
-use super::{bytes_of, Entry, Face, LightBuffer, NoBuffer, MOST_LISTED, NEAR_DIVISOR, TILE, WIDEN};
+use super::{
+    bytes_of, Entry, Face, LightBuffer, Listed, NoBuffer, Steps, MOST_LISTED, NEAR_DIVISOR, TILE,
+    WIDEN,
+};
 use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
@@ -348,6 +351,7 @@ impl<R: Real> LightBuffer<R> {
         if !(farthest.is_finite() && farthest > 0.0) {
             return Err(NoBuffer::Unsuited);
         }
+        let steps = Steps::new(spheres.len(), farthest).ok_or(NoBuffer::Unsuited)?;
         let near = farthest / NEAR_DIVISOR;
         // Each sphere as the light sees it, and what their rectangles cover.
         seen.clear();
@@ -424,7 +428,7 @@ impl<R: Real> LightBuffer<R> {
         };
         let most = MOST_LISTED_PER_SPHERE * spheres.len();
         let split = Split::for_threads(spheres.len(), texels, rayon::current_num_threads());
-        let bounds = ListBounds { most, fits };
+        let bounds = ListBounds { most, fits, steps };
         let lists = fill_lists(&faces, texels, &placements, entry, bounds, split, fill)?;
         Ok(LightBuffer {
             light,
@@ -434,6 +438,7 @@ impl<R: Real> LightBuffer<R> {
             faces,
             starts: lists.starts,
             entries: lists.entries,
+            steps,
             complete_within: lists.complete_within,
         })
     }
@@ -623,15 +628,17 @@ fn fill_lists(
             cursors[k] += 1;
         });
     });
-    Ok(cut_lists(raw, listed, split.runs))
+    Ok(cut_lists(raw, listed, split.runs, bounds.steps))
 }
 
 /// How many entries a light's lists may take: at most `most` before the
 /// cut (past it, [`NoBuffer::Unsuited`]), and a number kept after it that
-/// `fits` the buffer's room (else [`NoBuffer::NoRoom`]).
+/// `fits` the buffer's room (else [`NoBuffer::NoRoom`]), each packed by
+/// `steps`.
 struct ListBounds<F> {
     most: usize,
     fits: F,
+    steps: Steps,
 }
 
 /// The texels' lists as a buffer keeps them: texel k lists
@@ -639,7 +646,7 @@ struct ListBounds<F> {
 /// near to the light the first sphere left out of it comes.
 struct Lists {
     starts: Vec<u32>,
-    entries: Vec<Entry>,
+    entries: Vec<Listed>,
     complete_within: Vec<f32>,
 }
 
@@ -667,8 +674,9 @@ impl Split {
 /// The lists `listed[raw[k]..raw[k + 1]]`, each cut to its nearest
 /// [`MOST_LISTED`]: the kept lists' starts, their entries, and each list's
 /// nearest distance left out. A list keeps its order (the spheres', which
-/// is the grid's cell order) unless it is cut.
-fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> Lists {
+/// is the grid's cell order) unless it is cut; the kept entries are packed
+/// by `steps`.
+fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize, steps: Steps) -> Lists {
     let texels = raw.len() - 1;
     let kept = |k: usize| (raw[k + 1] - raw[k]).min(MOST_LISTED);
     let mut starts = Vec::with_capacity(texels + 1);
@@ -689,7 +697,7 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> Lists {
                 .min(texels),
         })
         .collect();
-    let mut entries = vec![Entry::default(); total];
+    let mut entries = vec![Listed::default(); total];
     let mut complete_within = vec![f32::INFINITY; texels];
     let mut tasks = Vec::with_capacity(runs);
     let (mut rest, mut rest_complete, mut from) = (&mut entries[..], &mut complete_within[..], 0);
@@ -715,7 +723,7 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> Lists {
                     out[at..at + n]
                         .iter_mut()
                         .zip(entries)
-                        .for_each(|(o, e)| *o = e);
+                        .for_each(|(o, e)| *o = steps.pack(e));
                     at += n;
                     continue;
                 }
@@ -723,7 +731,9 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize) -> Lists {
                 list.extend(entries);
                 list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
                 *complete = list[MOST_LISTED].nearest;
-                out[at..at + MOST_LISTED].copy_from_slice(&list[..MOST_LISTED]);
+                (out[at..at + MOST_LISTED].iter_mut())
+                    .zip(&list[..MOST_LISTED])
+                    .for_each(|(o, &e)| *o = steps.pack(e));
                 at += MOST_LISTED;
             }
         });
@@ -778,11 +788,17 @@ mod tests {
         (spans, several, entries)
     }
 
+    /// The packing of the test lists' spheres and distances.
+    fn steps() -> Steps {
+        Steps::new(3000, 1000.0).unwrap()
+    }
+
     /// Bounds no list reaches.
     fn ample() -> ListBounds<impl FnOnce(usize) -> bool> {
         ListBounds {
             most: usize::MAX,
             fits: |_| true,
+            steps: steps(),
         }
     }
 
@@ -843,7 +859,7 @@ mod tests {
                 } = lists.unwrap();
                 for (k, (list, within)) in want.iter().enumerate() {
                     let mine = &got[starts[k] as usize..starts[k + 1] as usize];
-                    let mine: Vec<u32> = mine.iter().map(|e| e.sphere).collect();
+                    let mine: Vec<u32> = mine.iter().map(|&e| steps().sphere(e)).collect();
                     assert_eq!(
                         (&mine, complete[k]),
                         (list, *within),
@@ -868,6 +884,7 @@ mod tests {
         let bounds = ListBounds {
             most: 299,
             fits: |_| true,
+            steps: steps(),
         };
         let fill = fill_lists(&faces, 512, &p, entry, bounds, split, &mut scratch);
         assert_eq!(fill.err(), Some(NoBuffer::Unsuited));
@@ -893,6 +910,7 @@ mod tests {
         let room = |kept_most: usize| ListBounds {
             most: usize::MAX,
             fits: move |kept: usize| kept <= kept_most,
+            steps: steps(),
         };
         let short = fill_lists(&faces, 512, &p, entry, room(want - 1), split, &mut scratch);
         assert_eq!(short.err(), Some(NoBuffer::NoRoom));
