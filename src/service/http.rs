@@ -339,14 +339,7 @@ impl Connection {
             return;
         }
         let deadline = Instant::now() + Duration::from_millis(limits::LINGER_MS);
-        let mut chunk = [0u8; READ_CHUNK];
-        let mut left = limits::LINGER_BYTES;
-        while left > 0 {
-            match self.read_before(deadline, &mut chunk) {
-                Ok(n) => left = left.saturating_sub(n),
-                Err(_) => return,
-            }
-        }
+        discard(|chunk| self.read_before(deadline, chunk).ok());
     }
 
     /// Ends a connection the server closes without answering, as it stops:
@@ -360,14 +353,7 @@ impl Connection {
         {
             return;
         }
-        let mut chunk = [0u8; READ_CHUNK];
-        let mut left = limits::LINGER_BYTES;
-        while left > 0 {
-            match (&*self.stream).read(&mut chunk) {
-                Ok(0) | Err(_) => return,
-                Ok(n) => left = left.saturating_sub(n),
-            }
-        }
+        discard(|chunk| (&*self.stream).read(chunk).ok());
     }
 
     /// Whether body bytes have already arrived (then `100 Continue` is moot).
@@ -446,6 +432,19 @@ enum End {
     Closed,
     /// Reset, or another error.
     Reset,
+}
+
+/// Reads and throws away what `read` gives, [`limits::LINGER_BYTES`] at
+/// most, until it gives nothing (an end, an error, a deadline).
+fn discard(mut read: impl FnMut(&mut [u8]) -> Option<usize>) {
+    let mut chunk = [0u8; READ_CHUNK];
+    let mut left = limits::LINGER_BYTES;
+    while left > 0 {
+        match read(&mut chunk) {
+            Some(n) if n > 0 => left = left.saturating_sub(n),
+            _ => return,
+        }
+    }
 }
 
 fn is_timeout(e: &io::Error) -> bool {
