@@ -11,7 +11,7 @@
 
 use super::cone::Cones;
 use super::slab::{set_bits, Packet, Searching};
-use super::walk::Ray64;
+use super::walk::{lesser, Ray64};
 use super::{TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
@@ -113,7 +113,7 @@ impl<R: Real> Searching for Groups<R> {
             return f64::NEG_INFINITY;
         }
         let lanes = &self.groups[i / LANES];
-        super::search_end(lanes.best_t[i % LANES].min(lanes.t_max))
+        super::search_end(lesser(lanes.best_t[i % LANES], lanes.t_max))
     }
 
     #[inline(always)]
@@ -188,19 +188,31 @@ impl<R: Real> VoxelHashGrid<R> {
         t_max: R,
         out: &mut [Option<Hit<R>>],
     ) -> Answered {
+        Packet::with_spare(|packet| self.eye_packets(packet, origin, dirs, t_min, t_max, out))
+    }
+
+    /// [`Self::packet_closest_hits`] with `packet` to aim.
+    fn eye_packets(
+        &self,
+        packet: &mut Packet,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) -> Answered {
         let mut rays = Groups {
             groups: std::array::from_fn(|_| Lanes::new(origin, t_min)),
             budget: TestBudget::new(self.packet_tests),
         };
-        let mut packet = Packet::new();
         for (dirs, out) in dirs.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // A short last packet repeats its last ray in the spare lanes.
             let padded: [V3<R>; RAYS] = std::array::from_fn(|i| dirs[i.min(dirs.len() - 1)]);
-            if aim_eye_packet::<R>(&mut packet, origin, &padded) {
+            if aim_eye_packet::<R>(packet, origin, &padded) {
                 for (g, lanes) in rays.groups.iter_mut().enumerate() {
                     lanes.aim(&padded[g * LANES..(g + 1) * LANES], t_max);
                 }
-                self.trace_packet(&packet, &mut rays, t_min);
+                self.trace_packet(packet, &mut rays, t_min);
                 for (i, hit) in out.iter_mut().enumerate() {
                     *hit = rays.groups[i / LANES].hit(i % LANES);
                 }

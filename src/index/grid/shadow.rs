@@ -199,12 +199,22 @@ impl<R: Real> VoxelHashGrid<R> {
         origins: &[V3<R>],
         out: &mut [bool],
     ) -> Answered {
+        Packet::with_spare(|packet| self.shadow_packets(packet, light, origins, out))
+    }
+
+    /// [`Self::packet_any_hits_toward`] with `packet` to aim.
+    fn shadow_packets(
+        &self,
+        packet: &mut Packet,
+        light: V3<R>,
+        origins: &[V3<R>],
+        out: &mut [bool],
+    ) -> Answered {
         let mut rays = ShadowGroups {
             groups: std::array::from_fn(|_| ShadowLanes::new()),
             budget: TestBudget::new(self.packet_tests),
             last_blocker: None,
         };
-        let mut packet = Packet::new();
         let coarsest_cell = self.levels.iter().map(|l| l.cell).reduce(f64::max);
         for (origins, out) in origins.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
             // The first group's rays, one at a time, are the sample.
@@ -227,7 +237,7 @@ impl<R: Real> VoxelHashGrid<R> {
             let dirs = padded.map(|o| light - o);
             if lit * LIT_DIVISOR > sampled
                 && may_fan_out_little::<R>(origins, coarsest_cell)
-                && aim_shadow_packet::<R>(&mut packet, light, &padded, &dirs)
+                && aim_shadow_packet::<R>(packet, light, &padded, &dirs)
             {
                 for (g, lanes) in rays.groups.iter_mut().enumerate() {
                     let lanes_of = g * LANES..(g + 1) * LANES;
@@ -235,7 +245,7 @@ impl<R: Real> VoxelHashGrid<R> {
                 }
                 // The sample's lanes are answered already.
                 rays.groups[0].blocked = ALL_LANES;
-                self.trace_shadow_packet(&packet, &mut rays);
+                self.trace_shadow_packet(packet, &mut rays);
                 for (i, blocked) in out.iter_mut().enumerate() {
                     let lane = LANES + i;
                     *blocked = rays.groups[lane / LANES].blocked >> (lane % LANES) & 1 == 1;

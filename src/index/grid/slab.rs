@@ -29,7 +29,7 @@
 
 use super::packet::RAYS;
 use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
-use super::walk::Ray64;
+use super::walk::{greater, lesser, Ray64};
 use super::{EmptySpace, Level};
 use glam::DVec3;
 
@@ -74,9 +74,24 @@ pub(super) struct Packet {
 /// few f64 roundings of values themselves a few f32 units of the origin.
 const OFFSET_MARGIN: f64 = 1e-12;
 
+thread_local! {
+    /// The packet a thread's last walk used, kept for its next one.
+    static SPARE: std::cell::Cell<Option<Box<Packet>>> = const { std::cell::Cell::new(None) };
+}
+
 impl Packet {
+    /// Calls `f` with a packet to aim, the thread's spare one if it has one:
+    /// a packet is some 10 KB, and filling a fresh one for every 64 rays
+    /// cost more than a scene of few candidates spends on the rays.
+    pub fn with_spare<T>(f: impl FnOnce(&mut Packet) -> T) -> T {
+        let mut packet = SPARE.take().unwrap_or_else(|| Box::new(Packet::new()));
+        let result = f(&mut packet);
+        SPARE.set(Some(packet));
+        result
+    }
+
     /// A packet to aim (see [`Packet::aim`]).
-    pub fn new() -> Packet {
+    fn new() -> Packet {
         Packet {
             origin: [0.0; 3],
             rays: [Ray64::default(); RAYS],
@@ -175,10 +190,10 @@ impl Packet {
         for i in set_bits(live) {
             for j in 0..2 {
                 let m = self.slope[j][i];
-                range.lo[j] = range.lo[j].min(m);
-                range.hi[j] = range.hi[j].max(m);
-                range.offset_lo[j] = range.offset_lo[j].min(self.offset_lo[j][i]);
-                range.offset_hi[j] = range.offset_hi[j].max(self.offset_hi[j][i]);
+                range.lo[j] = lesser(range.lo[j], m);
+                range.hi[j] = greater(range.hi[j], m);
+                range.offset_lo[j] = lesser(range.offset_lo[j], self.offset_lo[j][i]);
+                range.offset_hi[j] = greater(range.offset_hi[j], self.offset_hi[j][i]);
             }
         }
         range
@@ -250,7 +265,7 @@ impl Search {
                 limit
             };
             self.limit[i] = limit;
-            self.nearest = self.nearest.min(limit);
+            self.nearest = lesser(self.nearest, limit);
         }
     }
 
@@ -264,7 +279,7 @@ impl Search {
             if travel > limit {
                 self.live &= !(1 << i);
             } else if self.live >> i & 1 != 0 {
-                self.nearest = self.nearest.min(limit);
+                self.nearest = lesser(self.nearest, limit);
             }
         }
         true
@@ -313,9 +328,8 @@ impl PlaneCells {
             // ⌊x⌋ clamped to [0, top]: clamped first, where truncation is
             // the floor (and a NaN becomes 0, as `floor_to_int` makes it).
             let cell = |p: f64| {
-                (self.start[j] + p * self.inv_cell)
-                    .max(0.0)
-                    .min(self.top[j]) as i64
+                let x = greater(0.0, self.start[j] + p * self.inv_cell);
+                lesser(self.top[j], x) as i64
             };
             rect.lo[j] = cell(lo);
             rect.hi[j] = cell(hi);
@@ -365,7 +379,11 @@ impl Level {
         // the first and last slab any ray is in, counted along the travel.
         let mut exit = [f64::NEG_INFINITY; RAYS];
         let mut live = 0u64;
-        let (mut first, mut last) = (i64::MAX, i64::MIN);
+        // The rays' first and last points along the axis, times `step` (exact):
+        // the slab of a point is monotone in its coordinate, so the extreme
+        // points give the extreme slabs, with two look-ups instead of two a ray.
+        let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
+        let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step as f64;
         for i in set_bits(among) {
             let ray = &packet.rays[i];
             let reach = rays.reach(i) + slack[i];
@@ -374,18 +392,17 @@ impl Level {
             };
             exit[i] = b;
             live |= 1 << i;
-            let top = self.dims[k] - 1;
-            let (sa, sb) = (
-                self.cell_at(ray, a, k, 0, top),
-                self.cell_at(ray, b, k, 0, top),
-            );
-            first = first.min(sa * step);
-            last = last.max(sb * step);
+            let (pa, pb) = (along(ray, a), along(ray, b));
+            first_along = if pa < first_along { pa } else { first_along };
+            last_along = if pb > last_along { pb } else { last_along };
         }
         if live == 0 {
             return true;
         }
-        let reach = |i: usize, rays: &S| (rays.reach(i) + slack[i]).min(exit[i]);
+        let top = self.dims[k] - 1;
+        let slab_of = |p: f64| self.slab_at(p * step as f64, k, 0, top) * step;
+        let (first, last) = (slab_of(first_along), slab_of(last_along));
+        let reach = |i: usize, rays: &S| lesser(rays.reach(i) + slack[i], exit[i]);
         let mut search = Search {
             live,
             limit: [f64::INFINITY; RAYS],

@@ -168,6 +168,28 @@ pub(super) fn floor_to_int(x: f64) -> i64 {
     truncated - i64::from((truncated as f64) > x)
 }
 
+/// The lesser of `a` and `b`: `b` only where it compares below `a`, so a NaN
+/// `b` never wins. One comparison and a select: `f64::min` pays for its NaN
+/// rule on every call, which the walks' per-ray loops feel.
+#[inline(always)]
+pub(super) fn lesser<T: PartialOrd>(a: T, b: T) -> T {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The greater of `a` and `b`: `b` only where it compares above `a` (see [`lesser`]).
+#[inline(always)]
+pub(super) fn greater<T: PartialOrd>(a: T, b: T) -> T {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
 /// The bits of the aligned 2×2×2 cube around `c` in a 4×4×4 mask laid out
 /// as [`cell_bit`]: bits 0, 1, 4, 5, 16, 17, 20 and 21, moved to the cube's
 /// corner.
@@ -203,8 +225,12 @@ impl Level {
                 }
             } else {
                 let (ta, tb) = ((lo - ray.o[a]) * ray.inv[a], (hi - ray.o[a]) * ray.inv[a]);
-                t0 = t0.max(ta.min(tb));
-                t1 = t1.min(ta.max(tb));
+                // A NaN (0·∞, from a direction too small to invert) leaves
+                // the span unclipped on that side: wider, so still covering
+                // the ray.
+                let (near, far) = if tb < ta { (tb, ta) } else { (ta, tb) };
+                t0 = greater(t0, near);
+                t1 = lesser(t1, far);
             }
         }
         (t0 <= t1).then_some((t0, t1))
@@ -213,7 +239,13 @@ impl Level {
     /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.
     #[inline(always)]
     pub(super) fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
-        let p = ray.o[axis] + t * ray.d[axis];
+        self.slab_at(ray.o[axis] + t * ray.d[axis], axis, lo, hi)
+    }
+
+    /// The index along `axis` of the cells holding coordinate `p` on it,
+    /// clamped to `[lo, hi]`: monotone in `p`.
+    #[inline(always)]
+    pub(super) fn slab_at(&self, p: f64, axis: usize, lo: i64, hi: i64) -> i64 {
         floor_to_int((p - self.origin[axis]) * self.per_cell).clamp(lo, hi)
     }
 
