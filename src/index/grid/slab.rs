@@ -408,7 +408,8 @@ impl Level {
             limit: [f64::INFINITY; RAYS],
             nearest: f64::INFINITY,
         };
-        search.update(packet, |i| reach(i, rays), live);
+        // At the start a ray's reach is its exit (`clip` ends there, or sooner).
+        search.update(packet, |i| exit[i], live);
         rays.take_improved();
         // Slab s lies between planes s and s + 1; a ray entering it going
         // down the axis crosses plane s + 1 first.

@@ -215,25 +215,29 @@ fn first_axis(t: &[f64; 3]) -> usize {
 
 impl Level {
     /// The part of [t_lo, t_hi] the ray spends inside this level's box.
+    ///
+    /// Without branches: where d = ±0 its reciprocal is ±∞, so the slab
+    /// between the box's planes gives t = ±∞ (the whole line, or none of it)
+    /// and a start on a plane gives 0·∞ = NaN, which the comparisons of
+    /// [`greater`] and [`lesser`] ignore: the span stays unclipped on that
+    /// side, as the ray lies in the box's closed slab. Each plane is taken as
+    /// near or far by the direction's sign, so a NaN never swaps them.
+    #[inline(always)]
     pub(super) fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (t_lo, t_hi);
         for a in 0..3 {
-            let (lo, hi) = (self.origin[a], self.far[a]);
-            if ray.d[a] == 0.0 {
-                if !(ray.o[a] >= lo && ray.o[a] <= hi) {
-                    return None;
-                }
+            let up = ray.inv[a] >= 0.0;
+            let (near, far) = if up {
+                (self.origin[a], self.far[a])
             } else {
-                let (ta, tb) = ((lo - ray.o[a]) * ray.inv[a], (hi - ray.o[a]) * ray.inv[a]);
-                // A NaN (0·∞, from a direction too small to invert) leaves
-                // the span unclipped on that side: wider, so still covering
-                // the ray.
-                let (near, far) = if tb < ta { (tb, ta) } else { (ta, tb) };
-                t0 = greater(t0, near);
-                t1 = lesser(t1, far);
-            }
+                (self.far[a], self.origin[a])
+            };
+            t0 = greater(t0, (near - ray.o[a]) * ray.inv[a]);
+            t1 = lesser(t1, (far - ray.o[a]) * ray.inv[a]);
         }
-        (t0 <= t1).then_some((t0, t1))
+        // t0 = +∞: parallel to a plane outside the box, which t0 ≤ t1 misses
+        // only where every other reciprocal overflowed too (t1 = +∞).
+        (t0 <= t1 && t0 < f64::INFINITY).then_some((t0, t1))
     }
 
     /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.
@@ -477,7 +481,70 @@ impl Level {
 
 #[cfg(test)]
 mod tests {
-    use super::first_axis;
+    use super::{first_axis, Ray64};
+    use crate::geometry::Ellipsoid;
+    use crate::index::grid::{Level, VoxelHashGrid};
+    use glam::{DVec3, Vec3};
+    use proptest::prelude::*;
+
+    /// The clip as the box's three slabs say it, axis by axis, with a
+    /// branch for a ray parallel to a slab's planes.
+    fn clip_by_cases(level: &Level, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (t_lo, t_hi);
+        for a in 0..3 {
+            let (lo, hi) = (level.origin[a], level.far[a]);
+            if ray.d[a] == 0.0 {
+                if !(ray.o[a] >= lo && ray.o[a] <= hi) {
+                    return None;
+                }
+            } else {
+                let (ta, tb) = ((lo - ray.o[a]) * ray.inv[a], (hi - ray.o[a]) * ray.inv[a]);
+                t0 = t0.max(ta.min(tb));
+                t1 = t1.min(ta.max(tb));
+            }
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    fn a_level() -> VoxelHashGrid<f32> {
+        let mut rng = crate::rng::Rng::new(7);
+        let mut coordinate = || rng.range(-3.0, 3.0) as f32;
+        let shapes: Vec<Ellipsoid<f32>> = (0..200)
+            .map(|_| {
+                let center = Vec3::new(coordinate(), coordinate(), coordinate());
+                Ellipsoid::new(center, Vec3::splat(0.25))
+            })
+            .collect();
+        VoxelHashGrid::new(&shapes)
+    }
+
+    proptest! {
+        /// The branch-free clip gives what the axis-by-axis cases give,
+        /// rays parallel to the planes (d = +0 or −0) and starting on them
+        /// included, for directions whose reciprocal is finite.
+        #[test]
+        fn clip_agrees_with_the_slab_cases(
+            place in prop::array::uniform3(0usize..5),
+            offset in prop::array::uniform3(-3.0f64..3.0),
+            dir in prop::array::uniform3(prop_oneof![
+                Just(0.0f64), Just(-0.0f64), -2.0f64..2.0, 1e-30f64..1e-20
+            ]),
+            t_lo in -5.0f64..1.0,
+            t_hi in prop_oneof![Just(f64::INFINITY), 1.0f64..20.0],
+        ) {
+            let grid = a_level();
+            let level = &grid.levels[0];
+            // On the box's low or high plane, inside, below or above it.
+            let o = DVec3::from_array(std::array::from_fn(|a| {
+                let (lo, hi) = (level.origin[a], level.far[a]);
+                [lo, hi, (lo + hi) / 2.0 + offset[a], lo - 1.0 - offset[a].abs(), hi + 1.0][place[a]]
+            }));
+            let Some(ray) = Ray64::from_f64(o, DVec3::from_array(dir)) else {
+                return Ok(());
+            };
+            prop_assert_eq!(level.clip(&ray, t_lo, t_hi), clip_by_cases(level, &ray, t_lo, t_hi));
+        }
+    }
 
     /// The first of the smallest, over every order of equal, unequal and
     /// infinite crossings.
