@@ -176,6 +176,13 @@ impl<R: Real> Nearest<R> {
         }
     }
 
+    /// [`search_end`] of the best t, once there is a hit: the cap is that
+    /// t's next step up already.
+    #[inline(always)]
+    fn search_end(&self) -> Option<f64> {
+        self.best.is_some().then(|| self.cap.to_f64())
+    }
+
     /// Tests `sphere`, keeping its hit if it comes first in (t, id) order.
     #[inline(always)]
     fn offer(&mut self, sphere: &Candidate<R>, ray: &Ray<R>, t_min: R) {
@@ -435,9 +442,7 @@ impl<R: Real> VoxelHashGrid<R> {
                             test(i, &mut nearest);
                         }
                     }
-                    nearest
-                        .best
-                        .map_or(f64::INFINITY, |b| search_end(b.t) + slack)
+                    nearest.search_end().map_or(f64::INFINITY, |t| t + slack)
                 },
             );
         }
