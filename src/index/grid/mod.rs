@@ -547,18 +547,29 @@ mod tests {
     use crate::geometry::Ellipsoid;
     use glam::Vec3;
 
+    /// `count` ellipsoids of the given semi-axes, centred uniformly in the
+    /// cube of half-side `half`, drawn from `seed`.
+    pub(in crate::index::grid) fn scattered(
+        seed: u64,
+        count: usize,
+        half: f64,
+        semi_axes: Vec3,
+    ) -> Vec<Ellipsoid<f32>> {
+        let mut rng = crate::rng::Rng::new(seed);
+        let mut coordinate = || rng.range(-half, half) as f32;
+        (0..count)
+            .map(|_| {
+                let center = Vec3::new(coordinate(), coordinate(), coordinate());
+                Ellipsoid::new(center, semi_axes)
+            })
+            .collect()
+    }
+
     /// The room a buffer is refused for is counted before its lists are
     /// filled, exactly: a buffer fits the bytes it holds, and not one fewer.
     #[test]
     fn a_light_buffer_fits_exactly_the_bytes_it_holds() {
-        let mut rng = crate::rng::Rng::new(3);
-        let mut coordinate = || rng.range(-4.0, 4.0) as f32;
-        let shapes: Vec<Ellipsoid<f32>> = (0..5_000)
-            .map(|_| {
-                let center = Vec3::new(coordinate(), coordinate(), coordinate());
-                Ellipsoid::new(center, Vec3::new(0.05, 0.08, 0.03))
-            })
-            .collect();
+        let shapes = scattered(3, 5_000, 4.0, Vec3::new(0.05, 0.08, 0.03));
         let grid = VoxelHashGrid::new(&shapes);
         let scratch = &mut Scratch::default();
         // Far off, and just outside a sphere (which every ray then tests).

@@ -482,7 +482,7 @@ impl Level {
 #[cfg(test)]
 mod tests {
     use super::{first_axis, Ray64};
-    use crate::geometry::Ellipsoid;
+    use crate::index::grid::tests::scattered;
     use crate::index::grid::{Level, VoxelHashGrid};
     use glam::{DVec3, Vec3};
     use proptest::prelude::*;
@@ -507,15 +507,7 @@ mod tests {
     }
 
     fn a_level() -> VoxelHashGrid<f32> {
-        let mut rng = crate::rng::Rng::new(7);
-        let mut coordinate = || rng.range(-3.0, 3.0) as f32;
-        let shapes: Vec<Ellipsoid<f32>> = (0..200)
-            .map(|_| {
-                let center = Vec3::new(coordinate(), coordinate(), coordinate());
-                Ellipsoid::new(center, Vec3::splat(0.25))
-            })
-            .collect();
-        VoxelHashGrid::new(&shapes)
+        VoxelHashGrid::new(&scattered(7, 200, 3.0, Vec3::splat(0.25)))
     }
 
     proptest! {
