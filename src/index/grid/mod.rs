@@ -177,7 +177,8 @@ impl<R: Real> Nearest<R> {
     }
 
     /// [`search_end`] of the best t, once there is a hit: the cap is that
-    /// t's next step up already.
+    /// t's next step up already (a walk asks after every occupied cell, so
+    /// the step is not taken again each time).
     #[inline(always)]
     fn search_end(&self) -> Option<f64> {
         self.best.is_some().then(|| self.cap.to_f64())

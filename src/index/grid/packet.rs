@@ -11,7 +11,7 @@
 
 use super::cone::Cones;
 use super::slab::{set_bits, Packet, Searching};
-use super::walk::{lesser, Ray64};
+use super::walk::Ray64;
 use super::{TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
@@ -34,10 +34,10 @@ struct Lanes<R: Real> {
     best_t: [R; LANES],
     best_id: [u32; LANES],
     /// A hit counts up to and including the best t so far (so that an equal
-    /// t with a lower id still wins, as in brute force): `best_t.next_up()`.
+    /// t with a lower id still wins, as in brute force): `best_t.next_up()`,
+    /// and the search's `t_max` before any hit.
     cap: [R; LANES],
     t_min: R,
-    t_max: R,
     /// The lanes whose best hit moved nearer, one bit each.
     improved: u32,
 }
@@ -51,7 +51,6 @@ impl<R: Real> Lanes<R> {
             best_id: [u32::MAX; LANES],
             cap: [R::infinity(); LANES],
             t_min,
-            t_max: R::infinity(),
             improved: 0,
         }
     }
@@ -66,7 +65,6 @@ impl<R: Real> Lanes<R> {
         self.best_t = [R::infinity(); LANES];
         self.best_id = [u32::MAX; LANES];
         self.cap = [t_max; LANES];
-        self.t_max = t_max;
         self.improved = 0;
     }
 
@@ -83,6 +81,18 @@ impl<R: Real> Lanes<R> {
                 self.cap[i] = t.next_up();
                 self.improved |= 1 << i;
             }
+        }
+    }
+
+    /// The t lane `lane`'s walk must reach: [`super::search_end`] of its
+    /// best t, which once it has a hit is its cap (the next step up), and of
+    /// `t_max` (the cap) before.
+    #[inline(always)]
+    fn search_end(&self, lane: usize) -> f64 {
+        if self.best_id[lane] == u32::MAX {
+            super::search_end(self.cap[lane])
+        } else {
+            self.cap[lane].to_f64()
         }
     }
 
@@ -112,8 +122,7 @@ impl<R: Real> Searching for Groups<R> {
         if self.budget.spent() {
             return f64::NEG_INFINITY;
         }
-        let lanes = &self.groups[i / LANES];
-        super::search_end(lesser(lanes.best_t[i % LANES], lanes.t_max))
+        self.groups[i / LANES].search_end(i % LANES)
     }
 
     #[inline(always)]

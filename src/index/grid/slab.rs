@@ -393,8 +393,8 @@ impl Level {
             exit[i] = b;
             live |= 1 << i;
             let (pa, pb) = (along(ray, a), along(ray, b));
-            first_along = if pa < first_along { pa } else { first_along };
-            last_along = if pb > last_along { pb } else { last_along };
+            first_along = lesser(first_along, pa);
+            last_along = greater(last_along, pb);
         }
         if live == 0 {
             return true;
