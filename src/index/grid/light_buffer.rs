@@ -41,10 +41,11 @@
 //! `x_b / (s·x_a)` takes its extremes at the corners, so the rectangle of
 //! the corner ratios holds the face coordinates of every such q.
 //!
-//! A texel's list is cut at [`MOST_LISTED`] spheres, and the nearest
-//! distance of the first one left out is kept: a ray whose origin lies
-//! beyond it, and that no listed sphere blocks, goes to the walk. So a ray
-//! tests at most that many spheres here, whatever the scene.
+//! A texel's list is cut at [`MOST_LISTED`] spheres, the nearest by their
+//! packed distance, and a distance no sphere left out comes nearer than is
+//! kept: a ray whose origin lies beyond it, and that no listed sphere
+//! blocks, goes to the walk. So a ray tests at most that many spheres
+//! here, whatever the scene.
 
 mod build;
 mod listed;

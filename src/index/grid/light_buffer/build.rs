@@ -12,7 +12,7 @@ use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 /// A sphere covering more texels than this is tested by every ray instead
 /// of listed in each.
@@ -475,13 +475,6 @@ fn lay_out_faces(cover: &Cover, spheres: usize) -> [Face; 6] {
     faces
 }
 
-/// Nearest first, then by position, as one integer: for the entries whose
-/// nearest distance is positive (every listed sphere's exceeds m), whose
-/// bits then order as the floats do. An order independent of the threads'.
-fn nearest_first(e: &Entry) -> u64 {
-    u64::from(e.nearest.to_bits()) << 32 | u64::from(e.sphere)
-}
-
 /// Where spheres are listed: a span per sphere (an empty one for a sphere
 /// listed nowhere), and the spans of spheres on several faces.
 struct Placements<'a> {
@@ -545,21 +538,9 @@ pub(in crate::index::grid) struct FillScratch {
     counts: Vec<Vec<u32>>,
     /// Texel k's entries before the cut are `listed[raw[k]..raw[k + 1]]`.
     raw: Vec<usize>,
-    /// Entries packed by [`pack`]: the parts write their own places of
-    /// each list at once.
-    listed: Vec<AtomicU64>,
-}
-
-/// An entry as one integer (and back), for [`FillScratch::listed`].
-fn pack(e: Entry) -> u64 {
-    u64::from(e.nearest.to_bits()) << 32 | u64::from(e.sphere)
-}
-
-fn unpack(bits: u64) -> Entry {
-    Entry {
-        sphere: bits as u32,
-        nearest: f32::from_bits((bits >> 32) as u32),
-    }
+    /// Entries packed as the buffer keeps them: the parts write their own
+    /// places of each list at once.
+    listed: Vec<AtomicU32>,
 }
 
 /// The texels' lists of the spheres `placements` place, cut at
@@ -619,12 +600,16 @@ fn fill_lists(
         return Err(NoBuffer::NoRoom);
     }
     // Every part writes its entries, in sphere order, at its places.
+    // Room for the most entries any light may list, so that no later
+    // light's lists move them to fresh pages.
     listed.clear();
-    listed.resize_with(at, || AtomicU64::new(0));
+    listed.reserve(bounds.most);
+    listed.resize_with(at, || AtomicU32::new(0));
     let listed = &listed[..];
+    let steps = &bounds.steps;
     (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, cursors)| {
         part.for_each(faces, |k, i| {
-            listed[cursors[k] as usize].store(pack(entry(i)), Relaxed);
+            listed[cursors[k] as usize].store(steps.pack(entry(i)).bits(), Relaxed);
             cursors[k] += 1;
         });
     });
@@ -672,11 +657,16 @@ impl Split {
 }
 
 /// The lists `listed[raw[k]..raw[k + 1]]`, each cut to its nearest
-/// [`MOST_LISTED`]: the kept lists' starts, their entries, and each list's
-/// nearest distance left out. A list keeps its order (the spheres', which
-/// is the grid's cell order) unless it is cut; the kept entries are packed
-/// by `steps`.
-fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize, steps: Steps) -> Lists {
+/// [`MOST_LISTED`]: the kept lists' starts, their entries, and for each
+/// list a distance no sphere left out of it comes nearer than.
+///
+/// A packed entry orders as (step, sphere), so the cut keeps the spheres of
+/// the nearest steps, ties by position (an order independent of the
+/// threads'), and the first one left out has the least step of those left
+/// out: [`Steps::floor_of`] of it is below all their distances. A list
+/// keeps its order (the spheres', which is the grid's cell order) unless
+/// it is cut.
+fn cut_lists(raw: &[usize], listed: &[AtomicU32], runs: usize, steps: Steps) -> Lists {
     let texels = raw.len() - 1;
     let kept = |k: usize| (raw[k + 1] - raw[k]).min(MOST_LISTED);
     let mut starts = Vec::with_capacity(texels + 1);
@@ -714,26 +704,23 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU64], runs: usize, steps: Steps) -> 
             let mut list = Vec::new();
             let mut at = 0;
             for (k, complete) in run.zip(complete_within) {
-                let entries = listed[raw[k]..raw[k + 1]]
-                    .iter()
-                    .map(|e| unpack(e.load(Relaxed)));
+                let entries = listed[raw[k]..raw[k + 1]].iter().map(|e| e.load(Relaxed));
                 if entries.len() <= MOST_LISTED {
                     // Kept whole: straight to its place.
                     let n = entries.len();
-                    out[at..at + n]
-                        .iter_mut()
+                    (out[at..at + n].iter_mut())
                         .zip(entries)
-                        .for_each(|(o, e)| *o = steps.pack(e));
+                        .for_each(|(o, bits)| *o = Listed::from_bits(bits));
                     at += n;
                     continue;
                 }
                 list.clear();
                 list.extend(entries);
-                list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
-                *complete = list[MOST_LISTED].nearest;
+                list.select_nth_unstable(MOST_LISTED);
+                *complete = steps.floor_of(steps.step_of(Listed::from_bits(list[MOST_LISTED])));
                 (out[at..at + MOST_LISTED].iter_mut())
                     .zip(&list[..MOST_LISTED])
-                    .for_each(|(o, &e)| *o = steps.pack(e));
+                    .for_each(|(o, &bits)| *o = Listed::from_bits(bits));
                 at += MOST_LISTED;
             }
         });
@@ -796,7 +783,7 @@ mod tests {
     /// Bounds no list reaches.
     fn ample() -> ListBounds<impl FnOnce(usize) -> bool> {
         ListBounds {
-            most: usize::MAX,
+            most: 1 << 20,
             fits: |_| true,
             steps: steps(),
         }
@@ -812,7 +799,9 @@ mod tests {
     }
 
     /// Each texel's list as one sphere at a time would build it: in sphere
-    /// order, spheres on several faces last, cut to the nearest.
+    /// order, spheres on several faces last; a long one sorted nearest step
+    /// first (ties by position) and cut, with the floor of the first step
+    /// left out, which is below every distance left out.
     fn one_by_one(faces: &[Face; 6], p: &Placements, entries: &[Entry]) -> Vec<(Vec<u32>, f32)> {
         let mut lists = vec![Vec::new(); 512];
         for (i, span) in p.spans.iter().enumerate().filter(|(_, s)| s.listed) {
@@ -821,12 +810,15 @@ mod tests {
         for &(i, span) in p.several {
             span.for_each(faces, |k| lists[k].push(entries[i as usize]));
         }
+        let steps = steps();
+        let key = |e: &Entry| (steps.step(f64::from(e.nearest)), e.sphere);
         (lists.into_iter())
             .map(|mut list| {
                 let mut complete = f32::INFINITY;
                 if list.len() > MOST_LISTED {
-                    list.select_nth_unstable_by_key(MOST_LISTED, nearest_first);
-                    complete = list[MOST_LISTED].nearest;
+                    list.sort_by_key(key);
+                    complete = steps.floor_of(key(&list[MOST_LISTED]).0);
+                    assert!(list[MOST_LISTED..].iter().all(|e| e.nearest >= complete));
                     list.truncate(MOST_LISTED);
                 }
                 (list.iter().map(|e| e.sphere).collect(), complete)
@@ -859,7 +851,14 @@ mod tests {
                 } = lists.unwrap();
                 for (k, (list, within)) in want.iter().enumerate() {
                     let mine = &got[starts[k] as usize..starts[k + 1] as usize];
-                    let mine: Vec<u32> = mine.iter().map(|&e| steps().sphere(e)).collect();
+                    let mut mine: Vec<u32> = mine.iter().map(|&e| steps().sphere(e)).collect();
+                    if within.is_finite() {
+                        // A cut list's order is the selection's; its spheres
+                        // are the reference's.
+                        let key =
+                            |&i: &u32| (steps().step(f64::from(entries[i as usize].nearest)), i);
+                        mine.sort_by_key(key);
+                    }
                     assert_eq!(
                         (&mine, complete[k]),
                         (list, *within),
@@ -908,7 +907,7 @@ mod tests {
         let split = Split { parts: 3, runs: 2 };
         let mut scratch = FillScratch::default();
         let room = |kept_most: usize| ListBounds {
-            most: usize::MAX,
+            most: 1 << 20,
             fits: move |kept: usize| kept <= kept_most,
             steps: steps(),
         };

@@ -16,17 +16,31 @@
 //! fl(y·per_unit)` (rounding is monotone), so `step(x) ≤ step(y)`: every
 //! sphere the exact comparison keeps passes `step(nearest) ≤ step(within)`.
 //! The coarse comparison only lets through a few more, the spheres in the
-//! origin's own step, which the hit test then answers; and the cut of a
-//! long list still uses each entry's full distance.
+//! origin's own step, which the hit test then answers. A long list is cut
+//! by the packed entries too (nearest steps first), and keeps
+//! [`Steps::floor_of`] of the first step left out, below the distance of
+//! every sphere left out: a ray it cannot answer goes to the walk.
 
 use super::Entry;
 
 /// Fewest bits a distance keeps: below them, a light gets no buffer.
 const FEWEST_STEP_BITS: u32 = 4;
 
-/// A listed sphere: [`Steps::sphere`] and [`Steps::step_of`] read it.
+/// A listed sphere: [`Steps::sphere`] and [`Steps::step_of`] read it. Its
+/// bits order as (step, sphere): nearest steps first.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Listed(u32);
+
+impl Listed {
+    /// Its bits, for the build's shared lists.
+    pub(super) fn bits(self) -> u32 {
+        self.0
+    }
+
+    pub(super) fn from_bits(bits: u32) -> Self {
+        Listed(bits)
+    }
+}
 
 /// How one buffer packs its lists: the sphere in `sphere_bits`, the
 /// distance in the bits above them, in steps of `1 / per_unit`.
@@ -60,6 +74,22 @@ impl Steps {
 
     pub(super) fn pack(&self, e: Entry) -> Listed {
         Listed(self.step(f64::from(e.nearest)) << self.sphere_bits | e.sphere)
+    }
+
+    /// A distance, as f32, at most every non-negative distance in step
+    /// `step`: what a list cut at a sphere of that step knows of the
+    /// spheres it leaves out.
+    ///
+    /// `step(x) = s` gives `fl(x·p) ≥ s` (p = `per_unit`; the floor of a
+    /// number below s is below s, and the last step takes only numbers
+    /// from it on), so `x ≥ s / (p·(1 + u))`, u = 2^-53. The quotient
+    /// `fl(s / p)` is at most `(s / p)·(1 + u)`, and the factor
+    /// `1 − 2^-21` takes more than that rounding, the product's and the
+    /// conversion's to f32 (relative 2^-24) off again. Clamped to f32's
+    /// largest, which is then below x too.
+    pub(super) fn floor_of(&self, step: u32) -> f32 {
+        let shrink = 1.0 - 1.0 / (1u64 << 21) as f64;
+        ((f64::from(step) / self.per_unit * shrink) as f32).min(f32::MAX)
     }
 
     /// The listed sphere's position in the grid's sphere array.
@@ -129,6 +159,28 @@ mod tests {
             prop_assert!(steps.step_of(l) <= steps.step(within));
             // Its own distance is in its own step.
             prop_assert_eq!(steps.step_of(l), steps.step(f64::from(nearest)));
+        }
+
+        /// Every distance of a step, at any scale, is at least the step's
+        /// floor, the farthest steps and their edges included.
+        #[test]
+        fn a_step_s_floor_is_below_its_distances(
+            spheres in 1usize..(1 << 28),
+            scale_exp in -126i32..128,
+            a in 0.0f64..1.5,
+            nudge in -2i64..3,
+        ) {
+            let farthest = 2f64.powi(scale_exp) * 1.37;
+            let steps = Steps::new(spheres, farthest).unwrap();
+            // A distance a few ulps off a step's edge, or anywhere.
+            let s = steps.step(a * farthest);
+            let edge = f64::from(s) / steps.per_unit;
+            for x in [a * farthest, f64::from_bits((edge.to_bits() as i64 + nudge) as u64)] {
+                if x >= 0.0 {
+                    let floor = steps.floor_of(steps.step(x));
+                    prop_assert!(f64::from(floor) <= x, "{} > {}", floor, x);
+                }
+            }
         }
     }
 }
