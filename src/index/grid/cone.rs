@@ -2,6 +2,7 @@
 
 use super::packet::{GROUPS, LANES};
 use super::slab::Packet;
+use super::walk::lesser;
 use glam::DVec3;
 
 /// A cone from the packet's origin that holds a set of its rays (all of
@@ -54,14 +55,16 @@ const CONE_MARGIN: f64 = 1e-9;
 const MIN_CONE_COS: f64 = 0.5;
 
 impl Cone {
-    /// The cone around the unit directions `units`; None when the rays may
-    /// reach behind the apex or spread too wide for a cone to pay.
-    fn new(units: &[DVec3], t_min: f64) -> Option<Cone> {
+    /// The cone around the unit directions `units` whose axis is `toward`
+    /// normalized (their sum: any axis would hold them, as α is measured
+    /// from it); None when the rays may reach behind the apex or spread too
+    /// wide for a cone to pay.
+    fn new(toward: DVec3, units: &[DVec3], t_min: f64) -> Option<Cone> {
         if t_min.is_nan() || t_min < 0.0 {
             return None;
         }
-        let axis = units.iter().sum::<DVec3>().try_normalize()?;
-        let cos = units.iter().map(|u| axis.dot(*u)).fold(1.0, f64::min) - CONE_MARGIN;
+        let axis = toward.try_normalize()?;
+        let cos = units.iter().map(|u| axis.dot(*u)).fold(1.0, lesser) - CONE_MARGIN;
         (cos >= MIN_CONE_COS).then(|| Cone {
             axis,
             inv_sin: 1.0 / (1.0 - cos * cos).sqrt(),
@@ -99,11 +102,11 @@ pub(super) struct Cones {
 
 impl Cones {
     pub(super) fn new(packet: &Packet, t_min: f64) -> Cones {
+        let group = |g: usize| &packet.unit[g * LANES..(g + 1) * LANES];
+        let sums: [DVec3; GROUPS] = std::array::from_fn(|g| group(g).iter().sum());
         Cones {
-            packet: Cone::new(&packet.unit, t_min),
-            groups: std::array::from_fn(|g| {
-                Cone::new(&packet.unit[g * LANES..(g + 1) * LANES], t_min)
-            }),
+            packet: Cone::new(sums.iter().sum(), &packet.unit, t_min),
+            groups: std::array::from_fn(|g| Cone::new(sums[g], group(g), t_min)),
             apex: DVec3::from_array(packet.origin),
             spread: packet.spread(),
         }

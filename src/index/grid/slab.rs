@@ -114,15 +114,31 @@ impl Packet {
             *unit = DVec3::from_array(r.d) / r.length;
         }
         // How steeply the shallowest ray travels along each axis (0 when
-        // some ray runs parallel to it or the other way).
+        // some ray runs parallel to it or the other way), from whether all
+        // rays go up it, or all down, and their least slant: without a
+        // branch per ray (a NaN goes neither way).
         let first = self.unit[0];
-        let mut steepness = [f64::INFINITY; 3];
+        let (mut all_up, mut all_down) = ([true; 3], [true; 3]);
+        let mut least = [f64::INFINITY; 3];
         for u in &self.unit {
-            for (axis, least) in steepness.iter_mut().enumerate() {
-                let same_way = u[axis] != 0.0 && (u[axis] > 0.0) == (first[axis] > 0.0);
-                *least = least.min(if same_way { u[axis].abs() } else { 0.0 });
+            for axis in 0..3 {
+                all_up[axis] &= u[axis] > 0.0;
+                all_down[axis] &= u[axis] < 0.0;
+                least[axis] = lesser(least[axis], u[axis].abs());
             }
         }
+        let steepness: [f64; 3] = std::array::from_fn(|axis| {
+            let same_way = if first[axis] > 0.0 {
+                all_up[axis]
+            } else {
+                all_down[axis]
+            };
+            if same_way {
+                least[axis]
+            } else {
+                0.0
+            }
+        });
         // The steepest axis gives the thinnest slab rectangles.
         let axis = (0..3)
             .max_by(|&a, &b| steepness[a].total_cmp(&steepness[b]))
