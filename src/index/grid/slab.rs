@@ -117,7 +117,6 @@ impl Packet {
         // some ray runs parallel to it or the other way), from whether all
         // rays go up it, or all down, and their least slant: without a
         // branch per ray (a NaN goes neither way).
-        let first = self.unit[0];
         let (mut all_up, mut all_down) = ([true; 3], [true; 3]);
         let mut least = [f64::INFINITY; 3];
         for u in &self.unit {
@@ -128,11 +127,7 @@ impl Packet {
             }
         }
         let steepness: [f64; 3] = std::array::from_fn(|axis| {
-            let same_way = if first[axis] > 0.0 {
-                all_up[axis]
-            } else {
-                all_down[axis]
-            };
+            let same_way = all_up[axis] || all_down[axis];
             if same_way {
                 least[axis]
             } else {
@@ -143,12 +138,14 @@ impl Packet {
         let axis = (0..3)
             .max_by(|&a, &b| steepness[a].total_cmp(&steepness[b]))
             .unwrap_or(0);
-        if steepness[axis].is_nan() || steepness[axis] <= 0.0 {
+        // No axis every ray travels the same way (never NaN: `lesser`
+        // keeps the least slant a number).
+        if steepness[axis] <= 0.0 {
             return false;
         }
         self.origin = origin;
         self.axis = axis;
-        self.step = if first[axis] > 0.0 { 1 } else { -1 };
+        self.step = if all_up[axis] { 1 } else { -1 };
         for j in 0..2 {
             let u = (axis + 1 + j) % 3;
             for (m, r) in self.slope[j].iter_mut().zip(&self.rays) {

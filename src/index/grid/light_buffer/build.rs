@@ -798,6 +798,11 @@ mod tests {
         faces
     }
 
+    /// The order a long list is cut in: nearest step first, ties by position.
+    fn cut_order(e: &Entry) -> (u32, u32) {
+        (steps().step(f64::from(e.nearest)), e.sphere)
+    }
+
     /// Each texel's list as one sphere at a time would build it: in sphere
     /// order, spheres on several faces last; a long one sorted nearest step
     /// first (ties by position) and cut, with the floor of the first step
@@ -810,14 +815,12 @@ mod tests {
         for &(i, span) in p.several {
             span.for_each(faces, |k| lists[k].push(entries[i as usize]));
         }
-        let steps = steps();
-        let key = |e: &Entry| (steps.step(f64::from(e.nearest)), e.sphere);
         (lists.into_iter())
             .map(|mut list| {
                 let mut complete = f32::INFINITY;
                 if list.len() > MOST_LISTED {
-                    list.sort_by_key(key);
-                    complete = steps.floor_of(key(&list[MOST_LISTED]).0);
+                    list.sort_by_key(cut_order);
+                    complete = steps().floor_of(cut_order(&list[MOST_LISTED]).0);
                     assert!(list[MOST_LISTED..].iter().all(|e| e.nearest >= complete));
                     list.truncate(MOST_LISTED);
                 }
@@ -855,9 +858,7 @@ mod tests {
                     if within.is_finite() {
                         // A cut list's order is the selection's; its spheres
                         // are the reference's.
-                        let key =
-                            |&i: &u32| (steps().step(f64::from(entries[i as usize].nearest)), i);
-                        mine.sort_by_key(key);
+                        mine.sort_by_key(|&i| cut_order(&entries[i as usize]));
                     }
                     assert_eq!(
                         (&mine, complete[k]),
