@@ -41,6 +41,10 @@
 //! `x_b / (s·x_a)` takes its extremes at the corners, so the rectangle of
 //! the corner ratios holds the face coordinates of every such q.
 //!
+//! Each listed sphere also keeps the part of the texel its rectangle covers
+//! ([`footprint`]), which a ray's origin lies in whenever the sphere can
+//! block it.
+//!
 //! A texel's list is cut at [`MOST_LISTED`] spheres, the nearest by their
 //! packed distance, and a distance no sphere left out comes nearer than is
 //! kept: a ray whose origin lies beyond it, and that no listed sphere
@@ -48,12 +52,14 @@
 //! here, whatever the scene.
 
 mod build;
+mod footprint;
 mod listed;
 
 pub(super) use build::Scratch;
 
 use super::{Candidate, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
+use footprint::{Footprint, SUB};
 use glam::DVec3;
 use listed::{Listed, Steps};
 
@@ -104,14 +110,25 @@ struct Face {
 }
 
 impl Face {
-    /// The texel `uv` lies in, None outside the face's texels.
+    /// The sub-texel column (k = 0) or row (k = 1) face coordinate `x` lies
+    /// in, counted from the face's first; the one expression the build and
+    /// the look-ups share ([`footprint`] says why). Scaling by [`SUB`] is
+    /// exact, so a texel's index is this one's quotient by it.
     #[inline(always)]
-    fn texel(&self, uv: [f64; 2]) -> Option<usize> {
-        let i = ((uv[0] - self.lo[0]) * self.per_unit).floor();
-        let j = ((uv[1] - self.lo[1]) * self.per_unit).floor();
-        let inside = i >= 0.0 && j >= 0.0;
-        let (i, j) = (i as usize, j as usize);
-        (inside && i < self.texels[0] && j < self.texels[1]).then(|| self.index(i, j))
+    fn fine(&self, x: f64, k: usize) -> f64 {
+        ((x - self.lo[k]) * self.per_unit * SUB as f64).floor()
+    }
+
+    /// The texel `uv` lies in and its sub-texel there, None outside the
+    /// face's texels.
+    #[inline(always)]
+    fn texel(&self, uv: [f64; 2]) -> Option<(usize, Footprint)> {
+        let (x, y) = (self.fine(uv[0], 0), self.fine(uv[1], 1));
+        let inside = x >= 0.0 && y >= 0.0;
+        let (x, y) = (x as usize, y as usize);
+        let (i, j) = (x / SUB, y / SUB);
+        (inside && i < self.texels[0] && j < self.texels[1])
+            .then(|| (self.index(i, j), Footprint::at(x % SUB, y % SUB)))
     }
 
     /// Texel (i, j)'s place in the buffer's numbering: tile by tile of
@@ -135,20 +152,22 @@ pub(super) struct LightBuffer<R: Real> {
     always: Vec<Entry>,
     faces: [Face; 6],
     /// Texel k lists `entries[starts[k]..starts[k + 1]]`, in the grid's
-    /// sphere order, packed by `steps`.
+    /// sphere order, packed by `steps`, each with the part of the texel it
+    /// covers in `footprints`.
     starts: Vec<u32>,
     entries: Vec<Listed>,
+    footprints: Vec<Footprint>,
     steps: Steps,
     /// How near to the light the first sphere left out of texel k's list
     /// comes (+∞ where none was).
     complete_within: Vec<f32>,
 }
 
-/// The bytes of a buffer's arrays: `always` and `entries` entries, `starts`
-/// list starts and `complete` distances left out.
+/// The bytes of a buffer's arrays: `always` and `entries` entries (with
+/// their footprints), `starts` list starts and `complete` distances left out.
 fn bytes_of(always: usize, entries: usize, starts: usize, complete: usize) -> usize {
     size_of::<Entry>() * always
-        + size_of::<Listed>() * entries
+        + (size_of::<Listed>() + size_of::<Footprint>()) * entries
         + size_of::<u32>() * starts
         + size_of::<f32>() * complete
 }
@@ -214,18 +233,21 @@ impl<R: Real> LightBuffer<R> {
         };
         // The every-ray list is nearest first, so its first sphere beyond the
         // origin ends it; a texel's list is in sphere order, each one checked
-        // (by its step: a few more pass, none that would block is skipped).
+        // by its footprint and its step (a few more pass, none that would
+        // block is skipped), before the sphere is read.
         let nearer = |e: &&Entry| f64::from(e.nearest) <= within;
         if (self.always.iter().take_while(nearer)).any(|e| blocks(e.sphere)) {
             return Some(true);
         }
-        let Some(k) = self.faces[f].texel(uv) else {
+        let Some((k, point)) = self.faces[f].texel(uv) else {
             return Some(false);
         };
-        let list = &self.entries[self.starts[k] as usize..self.starts[k + 1] as usize];
+        let list = self.starts[k] as usize..self.starts[k + 1] as usize;
         let (steps, reach) = (&self.steps, self.steps.step(within));
-        let mut listed = list.iter().filter(|&&l| steps.step_of(l) <= reach);
-        if listed.any(|&l| blocks(steps.sphere(l))) {
+        let mut listed = (self.entries[list.clone()].iter())
+            .zip(&self.footprints[list])
+            .filter(|&(&l, &part)| part.holds(point) && steps.step_of(l) <= reach);
+        if listed.any(|(&l, _)| blocks(steps.sphere(l))) {
             return Some(true);
         }
         (f64::from(self.complete_within[k]) > within).then_some(false)

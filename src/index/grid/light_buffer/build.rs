@@ -5,14 +5,14 @@
 //! nearest [`MOST_LISTED`].
 
 use super::{
-    bytes_of, Entry, Face, LightBuffer, Listed, NoBuffer, Steps, MOST_LISTED, NEAR_DIVISOR, TILE,
-    WIDEN,
+    bytes_of, Entry, Face, Footprint, LightBuffer, Listed, NoBuffer, Steps, MOST_LISTED,
+    NEAR_DIVISOR, SUB, TILE, WIDEN,
 };
 use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use std::sync::atomic::{AtomicU32, AtomicU8, Ordering::Relaxed};
 
 /// A sphere covering more texels than this is tested by every ray instead
 /// of listed in each.
@@ -247,8 +247,8 @@ impl Cover {
     }
 }
 
-/// The texels a rectangle covers on one face: columns `lo[0]..=hi[0]` of
-/// rows `lo[1]..=hi[1]`.
+/// The texels a rectangle covers on one face, in sub-texels ([`SUB`] a
+/// texel side): columns `lo[0]..=hi[0]` of rows `lo[1]..=hi[1]`.
 #[derive(Clone, Copy, Default)]
 struct Span {
     face: u8,
@@ -260,7 +260,7 @@ struct Span {
 
 impl Span {
     fn texels(&self) -> usize {
-        let side = |k: usize| (self.hi[k] - self.lo[k] + 1) as usize;
+        let side = |k: usize| self.hi[k] as usize / SUB - self.lo[k] as usize / SUB + 1;
         if self.listed {
             side(0) * side(1)
         } else {
@@ -268,15 +268,30 @@ impl Span {
         }
     }
 
+    /// Calls `visit` with each texel it covers and its footprint there.
     #[inline(always)]
-    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize)) {
+    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, Footprint)) {
         let face = &faces[usize::from(self.face)];
+        let [lo, hi] = [self.lo, self.hi].map(|e| e.map(|x| x as usize));
+        // The sub-texels covered in texel `i` along axis k: all of them but
+        // in the first and last texels.
+        let part = |k: usize, i: usize| {
+            let first = if i == lo[k] / SUB { lo[k] % SUB } else { 0 };
+            let last = if i == hi[k] / SUB {
+                hi[k] % SUB
+            } else {
+                SUB - 1
+            };
+            [first, last]
+        };
         // Face::index, split into the row's part and the column's.
         let tile_row = face.texels[0] * TILE;
-        for j in self.lo[1] as usize..self.hi[1] as usize + 1 {
+        for j in lo[1] / SUB..hi[1] / SUB + 1 {
             let row = face.first + j / TILE * tile_row + j % TILE * TILE;
-            for i in self.lo[0] as usize..self.hi[0] as usize + 1 {
-                visit(row + i / TILE * TILE * TILE + i % TILE);
+            let rows = part(1, j);
+            for i in lo[0] / SUB..hi[0] / SUB + 1 {
+                let footprint = Footprint::of(part(0, i), rows);
+                visit(row + i / TILE * TILE * TILE + i % TILE, footprint);
             }
         }
     }
@@ -286,8 +301,8 @@ impl Face {
     /// The texels `rect` covers on face `f` (clamped to the face's).
     fn span(&self, f: usize, rect: &Rect) -> Span {
         let at = |x: f64, k: usize| {
-            let i = ((x - self.lo[k]) * self.per_unit).floor();
-            i.clamp(0.0, (self.texels[k] - 1) as f64) as u32
+            let i = self.fine(x, k);
+            i.clamp(0.0, (self.texels[k] * SUB - 1) as f64) as u32
         };
         Span {
             face: f as u8,
@@ -438,6 +453,7 @@ impl<R: Real> LightBuffer<R> {
             faces,
             starts: lists.starts,
             entries: lists.entries,
+            footprints: lists.footprints,
             steps,
             complete_within: lists.complete_within,
         })
@@ -517,16 +533,16 @@ struct Part<'a> {
 }
 
 impl Part<'_> {
-    /// Calls `visit` with each texel listing a sphere and that sphere,
-    /// sphere by sphere.
-    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, u32)) {
+    /// Calls `visit` with each texel listing a sphere, that sphere and its
+    /// footprint there, sphere by sphere.
+    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, u32, Footprint)) {
         for (span, i) in self.spans.iter().zip(self.first..) {
             if span.listed {
-                span.for_each(faces, |k| visit(k, i));
+                span.for_each(faces, |k, part| visit(k, i, part));
             }
         }
         for &(i, span) in self.several {
-            span.for_each(faces, |k| visit(k, i));
+            span.for_each(faces, |k, part| visit(k, i, part));
         }
     }
 }
@@ -541,6 +557,8 @@ pub(in crate::index::grid) struct FillScratch {
     /// Entries packed as the buffer keeps them: the parts write their own
     /// places of each list at once.
     listed: Vec<AtomicU32>,
+    /// Each entry's footprint ([`Footprint`]'s bits), at the same place.
+    footprints: Vec<AtomicU8>,
 }
 
 /// The texels' lists of the spheres `placements` place, cut at
@@ -568,6 +586,7 @@ fn fill_lists(
         counts,
         raw,
         listed,
+        footprints,
     } = scratch;
     let parts = placements.parts(split.parts);
     // Each part's entries per texel.
@@ -576,7 +595,7 @@ fn fill_lists(
     (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, counts)| {
         counts.clear();
         counts.resize(texels, 0);
-        part.for_each(faces, |k, _| counts[k] += 1);
+        part.for_each(faces, |k, _, _| counts[k] += 1);
     });
     // Each part's first place in each list, and where the lists start.
     raw.clear();
@@ -605,15 +624,21 @@ fn fill_lists(
     listed.clear();
     listed.reserve(bounds.most);
     listed.resize_with(at, || AtomicU32::new(0));
-    let listed = &listed[..];
+    footprints.clear();
+    footprints.reserve(bounds.most);
+    footprints.resize_with(at, || AtomicU8::new(0));
+    let filled = Filled {
+        listed: &listed[..],
+        footprints: &footprints[..],
+    };
     let steps = &bounds.steps;
     (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, cursors)| {
-        part.for_each(faces, |k, i| {
-            listed[cursors[k] as usize].store(steps.pack(entry(i)).bits(), Relaxed);
+        part.for_each(faces, |k, i, footprint| {
+            filled.put(cursors[k] as usize, steps.pack(entry(i)), footprint);
             cursors[k] += 1;
         });
     });
-    Ok(cut_lists(raw, listed, split.runs, bounds.steps))
+    Ok(cut_lists(raw, filled, split.runs, bounds.steps))
 }
 
 /// How many entries a light's lists may take: at most `most` before the
@@ -626,12 +651,43 @@ struct ListBounds<F> {
     steps: Steps,
 }
 
+/// The lists as filled, before the cut: entries and their footprints at
+/// the same places.
+#[derive(Clone, Copy)]
+struct Filled<'a> {
+    listed: &'a [AtomicU32],
+    footprints: &'a [AtomicU8],
+}
+
+impl Filled<'_> {
+    fn put(&self, at: usize, entry: Listed, footprint: Footprint) {
+        self.listed[at].store(entry.bits(), Relaxed);
+        self.footprints[at].store(footprint.bits(), Relaxed);
+    }
+
+    /// The entry at `at` and its footprint, in one word that orders as the
+    /// entry does (the footprint below it).
+    fn get(&self, at: usize) -> u64 {
+        u64::from(self.listed[at].load(Relaxed)) << 8 | u64::from(self.footprints[at].load(Relaxed))
+    }
+}
+
+/// An entry and its footprint from [`Filled::get`]'s word.
+fn unpack(word: u64) -> (Listed, Footprint) {
+    (
+        Listed::from_bits((word >> 8) as u32),
+        Footprint::from_bits(word as u8),
+    )
+}
+
 /// The texels' lists as a buffer keeps them: texel k lists
-/// `entries[starts[k]..starts[k + 1]]`, and `complete_within[k]` is how
-/// near to the light the first sphere left out of it comes.
+/// `entries[starts[k]..starts[k + 1]]` with their `footprints`, and
+/// `complete_within[k]` is how near to the light the first sphere left out
+/// of it comes.
 struct Lists {
     starts: Vec<u32>,
     entries: Vec<Listed>,
+    footprints: Vec<Footprint>,
     complete_within: Vec<f32>,
 }
 
@@ -656,9 +712,9 @@ impl Split {
     }
 }
 
-/// The lists `listed[raw[k]..raw[k + 1]]`, each cut to its nearest
-/// [`MOST_LISTED`]: the kept lists' starts, their entries, and for each
-/// list a distance no sphere left out of it comes nearer than.
+/// The lists `filled[raw[k]..raw[k + 1]]`, each cut to its nearest
+/// [`MOST_LISTED`]: the kept lists' starts, their entries and footprints,
+/// and for each list a distance no sphere left out of it comes nearer than.
 ///
 /// A packed entry orders as (step, sphere), so the cut keeps the spheres of
 /// the nearest steps, ties by position (an order independent of the
@@ -666,7 +722,7 @@ impl Split {
 /// out: [`Steps::floor_of`] of it is below all their distances. A list
 /// keeps its order (the spheres', which is the grid's cell order) unless
 /// it is cut.
-fn cut_lists(raw: &[usize], listed: &[AtomicU32], runs: usize, steps: Steps) -> Lists {
+fn cut_lists(raw: &[usize], filled: Filled, runs: usize, steps: Steps) -> Lists {
     let texels = raw.len() - 1;
     let kept = |k: usize| (raw[k + 1] - raw[k]).min(MOST_LISTED);
     let mut starts = Vec::with_capacity(texels + 1);
@@ -688,45 +744,51 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU32], runs: usize, steps: Steps) -> 
         })
         .collect();
     let mut entries = vec![Listed::default(); total];
+    let mut footprints = vec![Footprint::default(); total];
     let mut complete_within = vec![f32::INFINITY; texels];
     let mut tasks = Vec::with_capacity(runs);
-    let (mut rest, mut rest_complete, mut from) = (&mut entries[..], &mut complete_within[..], 0);
+    let mut rest = (
+        &mut entries[..],
+        &mut footprints[..],
+        &mut complete_within[..],
+    );
+    let mut from = 0;
     for &end in &ends {
         let end = end.max(from);
-        let (mine, tail) = rest.split_at_mut((starts[end] - starts[from]) as usize);
-        let (mine_complete, tail_complete) = rest_complete.split_at_mut(end - from);
-        tasks.push((from..end, mine, mine_complete));
-        (rest, rest_complete, from) = (tail, tail_complete, end);
+        let n = (starts[end] - starts[from]) as usize;
+        let (mine, tail) = rest.0.split_at_mut(n);
+        let (mine_footprints, tail_footprints) = rest.1.split_at_mut(n);
+        let (mine_complete, tail_complete) = rest.2.split_at_mut(end - from);
+        tasks.push((from..end, mine, mine_footprints, mine_complete));
+        (rest, from) = ((tail, tail_footprints, tail_complete), end);
     }
     tasks
         .into_par_iter()
-        .for_each(|(run, out, complete_within)| {
+        .for_each(|(run, out, out_footprints, complete_within)| {
             let mut list = Vec::new();
-            let mut at = 0;
+            let mut kept = out.iter_mut().zip(out_footprints);
+            let mut put = |word: u64| {
+                let (entry, footprint) = kept.next().expect("room for every kept entry");
+                (*entry, *footprint) = unpack(word);
+            };
             for (k, complete) in run.zip(complete_within) {
-                let entries = listed[raw[k]..raw[k + 1]].iter().map(|e| e.load(Relaxed));
-                if entries.len() <= MOST_LISTED {
+                let words = (raw[k]..raw[k + 1]).map(|at| filled.get(at));
+                if words.len() <= MOST_LISTED {
                     // Kept whole: straight to its place.
-                    let n = entries.len();
-                    (out[at..at + n].iter_mut())
-                        .zip(entries)
-                        .for_each(|(o, bits)| *o = Listed::from_bits(bits));
-                    at += n;
+                    words.for_each(&mut put);
                     continue;
                 }
                 list.clear();
-                list.extend(entries);
+                list.extend(words);
                 list.select_nth_unstable(MOST_LISTED);
-                *complete = steps.floor_of(steps.step_of(Listed::from_bits(list[MOST_LISTED])));
-                (out[at..at + MOST_LISTED].iter_mut())
-                    .zip(&list[..MOST_LISTED])
-                    .for_each(|(o, &bits)| *o = Listed::from_bits(bits));
-                at += MOST_LISTED;
+                *complete = steps.floor_of(steps.step_of(unpack(list[MOST_LISTED]).0));
+                list[..MOST_LISTED].iter().for_each(|&word| put(word));
             }
         });
     Lists {
         starts,
         entries,
+        footprints,
         complete_within,
     }
 }
@@ -734,8 +796,10 @@ fn cut_lists(raw: &[usize], listed: &[AtomicU32], runs: usize, steps: Steps) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
 
-    /// Random rectangles of texels on two faces, some spheres on both.
+    /// Random rectangles of sub-texels on two faces of 16×16 texels, some
+    /// spheres on both.
     fn placements(spheres: u32, seed: u64) -> (Vec<Span>, Vec<(u32, Span)>, Vec<Entry>) {
         let mut state = seed;
         let mut next = |n: u32| {
@@ -745,8 +809,9 @@ mod tests {
             ((state >> 33) % u64::from(n)) as u32
         };
         let span = |next: &mut dyn FnMut(u32) -> u32| {
-            let (face, lo) = (next(2) as u8, [next(16), next(16)]);
-            let hi = lo.map(|l| (l + next(4)).min(15));
+            let side = 16 * SUB as u32;
+            let (face, lo) = (next(2) as u8, [next(side), next(side)]);
+            let hi = lo.map(|l| (l + next(4 * SUB as u32)).min(side - 1));
             Span {
                 face,
                 lo,
@@ -798,33 +863,44 @@ mod tests {
         faces
     }
 
-    /// The order a long list is cut in: nearest step first, ties by position.
-    fn cut_order(e: &Entry) -> (u32, u32) {
-        (steps().step(f64::from(e.nearest)), e.sphere)
+    /// The order a long list is cut in: nearest step first, ties by
+    /// position, and a sphere listed twice in one texel (these tests place
+    /// spheres on two faces at random) by its footprint.
+    fn cut_order(e: &Entry, part: Footprint) -> (u32, u32, u8) {
+        (steps().step(f64::from(e.nearest)), e.sphere, part.bits())
     }
+
+    /// A texel's list: each sphere and its footprint there.
+    type List = Vec<(u32, Footprint)>;
 
     /// Each texel's list as one sphere at a time would build it: in sphere
     /// order, spheres on several faces last; a long one sorted nearest step
     /// first (ties by position) and cut, with the floor of the first step
     /// left out, which is below every distance left out.
-    fn one_by_one(faces: &[Face; 6], p: &Placements, entries: &[Entry]) -> Vec<(Vec<u32>, f32)> {
+    fn one_by_one(faces: &[Face; 6], p: &Placements, entries: &[Entry]) -> Vec<(List, f32)> {
         let mut lists = vec![Vec::new(); 512];
         for (i, span) in p.spans.iter().enumerate().filter(|(_, s)| s.listed) {
-            span.for_each(faces, |k| lists[k].push(entries[i]));
+            span.for_each(faces, |k, part| lists[k].push((entries[i], part)));
         }
         for &(i, span) in p.several {
-            span.for_each(faces, |k| lists[k].push(entries[i as usize]));
+            span.for_each(faces, |k, part| lists[k].push((entries[i as usize], part)));
         }
         (lists.into_iter())
             .map(|mut list| {
                 let mut complete = f32::INFINITY;
                 if list.len() > MOST_LISTED {
-                    list.sort_by_key(cut_order);
-                    complete = steps().floor_of(cut_order(&list[MOST_LISTED]).0);
-                    assert!(list[MOST_LISTED..].iter().all(|e| e.nearest >= complete));
+                    list.sort_by_key(|&(e, part)| cut_order(&e, part));
+                    complete =
+                        steps().floor_of(cut_order(&list[MOST_LISTED].0, Footprint::default()).0);
+                    assert!(list[MOST_LISTED..]
+                        .iter()
+                        .all(|(e, _)| e.nearest >= complete));
                     list.truncate(MOST_LISTED);
                 }
-                (list.iter().map(|e| e.sphere).collect(), complete)
+                (
+                    list.iter().map(|&(e, part)| (e.sphere, part)).collect(),
+                    complete,
+                )
             })
             .collect()
     }
@@ -850,15 +926,19 @@ mod tests {
                 let Lists {
                     starts,
                     entries: got,
+                    footprints,
                     complete_within: complete,
                 } = lists.unwrap();
                 for (k, (list, within)) in want.iter().enumerate() {
-                    let mine = &got[starts[k] as usize..starts[k + 1] as usize];
-                    let mut mine: Vec<u32> = mine.iter().map(|&e| steps().sphere(e)).collect();
+                    let at = starts[k] as usize..starts[k + 1] as usize;
+                    let mut mine: List = (got[at.clone()].iter())
+                        .zip(&footprints[at])
+                        .map(|(&e, &part)| (steps().sphere(e), part))
+                        .collect();
                     if within.is_finite() {
                         // A cut list's order is the selection's; its spheres
                         // are the reference's.
-                        mine.sort_by_key(|&i| cut_order(&entries[i as usize]));
+                        mine.sort_by_key(|&(i, part)| cut_order(&entries[i as usize], part));
                     }
                     assert_eq!(
                         (&mine, complete[k]),
@@ -866,6 +946,44 @@ mod tests {
                         "{spheres} {split:?} {k}"
                     );
                 }
+            }
+        }
+    }
+
+    proptest! {
+        /// A point of a sphere's rectangle looks up a texel the sphere is
+        /// listed in, and lies in its footprint there, at any scale and
+        /// with rectangles reaching past the face's texels.
+        #[test]
+        fn a_point_of_a_rectangle_lies_in_its_footprint(
+            scale_exp in -40i32..40,
+            lo in prop::array::uniform2(-2.0f64..2.0),
+            texels in prop::array::uniform2(1usize..6),
+            corner in prop::array::uniform2(-0.5f64..6.5),
+            size in prop::array::uniform2(0.0f64..3.0),
+            at in prop::array::uniform2(0.0f64..=1.0),
+        ) {
+            let side = 2f64.powi(scale_exp) * 0.37;
+            let face = Face {
+                lo: lo.map(|x| x * side),
+                per_unit: 1.0 / side,
+                texels: texels.map(|t| t * TILE),
+                first: 0,
+            };
+            let rect = Rect {
+                lo: [0, 1].map(|k| face.lo[k] + corner[k] * side),
+                hi: [0, 1].map(|k| face.lo[k] + (corner[k] + size[k]) * side),
+            };
+            let uv = [0, 1].map(|k| rect.lo[k] + at[k] * (rect.hi[k] - rect.lo[k]));
+            let uv = [0, 1].map(|k| uv[k].clamp(rect.lo[k], rect.hi[k]));
+            if let Some((texel, point)) = face.texel(uv) {
+                let mut found = None;
+                face.span(0, &rect).for_each(&[face; 6], |k, part| {
+                    if k == texel {
+                        found = Some(part);
+                    }
+                });
+                prop_assert!(found.is_some_and(|part| part.holds(point)), "{:?}", found);
             }
         }
     }
