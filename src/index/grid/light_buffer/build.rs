@@ -665,14 +665,23 @@ impl Filled<'_> {
         self.footprints[at].store(footprint.bits(), Relaxed);
     }
 
-    /// The entry at `at` and its footprint, in one word that orders as the
-    /// entry does (the footprint below it).
-    fn get(&self, at: usize) -> u64 {
-        u64::from(self.listed[at].load(Relaxed)) << 8 | u64::from(self.footprints[at].load(Relaxed))
+    /// The entry at `at` and its footprint.
+    fn get(&self, at: usize) -> (Listed, Footprint) {
+        (
+            Listed::from_bits(self.listed[at].load(Relaxed)),
+            Footprint::from_bits(self.footprints[at].load(Relaxed)),
+        )
+    }
+
+    /// [`Filled::get`] in one word that orders as the entry does (the
+    /// footprint below it), for the cut to select by.
+    fn word(&self, at: usize) -> u64 {
+        let (entry, footprint) = self.get(at);
+        u64::from(entry.bits()) << 8 | u64::from(footprint.bits())
     }
 }
 
-/// An entry and its footprint from [`Filled::get`]'s word.
+/// An entry and its footprint from [`Filled::word`]'s word.
 fn unpack(word: u64) -> (Listed, Footprint) {
     (
         Listed::from_bits((word >> 8) as u32),
@@ -767,22 +776,24 @@ fn cut_lists(raw: &[usize], filled: Filled, runs: usize, steps: Steps) -> Lists 
         .for_each(|(run, out, out_footprints, complete_within)| {
             let mut list = Vec::new();
             let mut kept = out.iter_mut().zip(out_footprints);
-            let mut put = |word: u64| {
+            let mut put = |listed: (Listed, Footprint)| {
                 let (entry, footprint) = kept.next().expect("room for every kept entry");
-                (*entry, *footprint) = unpack(word);
+                (*entry, *footprint) = listed;
             };
             for (k, complete) in run.zip(complete_within) {
-                let words = (raw[k]..raw[k + 1]).map(|at| filled.get(at));
-                if words.len() <= MOST_LISTED {
+                let places = raw[k]..raw[k + 1];
+                if places.len() <= MOST_LISTED {
                     // Kept whole: straight to its place.
-                    words.for_each(&mut put);
+                    places.for_each(|at| put(filled.get(at)));
                     continue;
                 }
                 list.clear();
-                list.extend(words);
+                list.extend(places.map(|at| filled.word(at)));
                 list.select_nth_unstable(MOST_LISTED);
                 *complete = steps.floor_of(steps.step_of(unpack(list[MOST_LISTED]).0));
-                list[..MOST_LISTED].iter().for_each(|&word| put(word));
+                list[..MOST_LISTED]
+                    .iter()
+                    .for_each(|&word| put(unpack(word)));
             }
         });
     Lists {
@@ -863,11 +874,16 @@ mod tests {
         faces
     }
 
+    /// The step an entry's distance is packed in.
+    fn step_of(e: &Entry) -> u32 {
+        steps().step(f64::from(e.nearest))
+    }
+
     /// The order a long list is cut in: nearest step first, ties by
     /// position, and a sphere listed twice in one texel (these tests place
     /// spheres on two faces at random) by its footprint.
     fn cut_order(e: &Entry, part: Footprint) -> (u32, u32, u8) {
-        (steps().step(f64::from(e.nearest)), e.sphere, part.bits())
+        (step_of(e), e.sphere, part.bits())
     }
 
     /// A texel's list: each sphere and its footprint there.
@@ -890,8 +906,7 @@ mod tests {
                 let mut complete = f32::INFINITY;
                 if list.len() > MOST_LISTED {
                     list.sort_by_key(|&(e, part)| cut_order(&e, part));
-                    complete =
-                        steps().floor_of(cut_order(&list[MOST_LISTED].0, Footprint::default()).0);
+                    complete = steps().floor_of(step_of(&list[MOST_LISTED].0));
                     assert!(list[MOST_LISTED..]
                         .iter()
                         .all(|(e, _)| e.nearest >= complete));
