@@ -58,10 +58,12 @@ mod compress;
 mod density;
 mod extent;
 mod lattice;
+mod octants;
 mod pairs;
 mod radix;
 
 use super::occupancy::Occupancy;
+use super::octant::LISTED_FOR_OCTANTS;
 use super::table::{BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS};
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
@@ -71,6 +73,7 @@ use density::split_by_density;
 use extent::Extents;
 use glam::DVec3;
 use lattice::{reciprocal, Lattice};
+use octants::reference_octants;
 use pairs::{sorted_cells, PairCode};
 use radix::sort_by_bits;
 use rayon::prelude::*;
@@ -194,6 +197,20 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
     } else {
         sorted_cells::<u128>(&code, ids, cell_box, order)
     };
+    let occupied = cell_start.len().saturating_sub(1);
+    let octants = if candidates.len() >= LISTED_FOR_OCTANTS * occupied {
+        let level_order = (order.as_slice(), order.len() - ids.len());
+        reference_octants(
+            &lattice,
+            &blocks,
+            &cell_start,
+            &candidates,
+            level_order,
+            extents,
+        )
+    } else {
+        Vec::new()
+    };
     Level {
         cell,
         per_cell: reciprocal(cell),
@@ -209,6 +226,7 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
         ),
         cell_start,
         ids: candidates,
+        octants,
     }
 }
 

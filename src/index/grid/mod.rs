@@ -4,9 +4,11 @@
 //! level is a uniform grid over the bounding box of its own spheres, stored
 //! sparsely: a hash table of occupied regions of 4×4×4 blocks, whose masks
 //! lead to the occupied 4×4×4 blocks of cells ([`table`]), whose masks lead
-//! to the occupied cells, each a run in one flat array of sphere ids (CSR).
+//! to the occupied cells, each a run in one flat array of sphere ids (CSR),
+//! each id with the octants of its cell its sphere overlaps ([`octant`]).
 //! A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
-//! coarsest level first, and jumps over empty blocks in one step. Eye rays
+//! coarsest level first, jumps over empty blocks in one step, and in a cell
+//! of several spheres tests only those in the octants it crosses. Eye rays
 //! of a tile ([`packet`]) and shadow rays from a tile toward one light
 //! ([`shadow`]) walk each level together, slab by slab ([`slab`]).
 //!
@@ -21,6 +23,7 @@ mod build;
 mod cone;
 mod light_buffer;
 mod occupancy;
+mod octant;
 mod packet;
 mod shadow;
 mod slab;
@@ -31,10 +34,11 @@ use super::{Answered, Hit, LightBuffers, SphereIndex};
 use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
 use glam::DVec3;
 use light_buffer::{LightBuffer, NoBuffer};
+use octant::Octants;
 pub use packet::RAYS as PACKET_RAYS;
 use rayon::prelude::*;
 use table::BlockTable;
-use walk::Ray64;
+use walk::{Ray64, Visit};
 
 /// How a ray crosses space no sphere occupies.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -65,9 +69,13 @@ pub struct Level {
     table: BlockTable,
     /// How far empty space reaches around each group of blocks, densely.
     occupancy: occupancy::Occupancy,
-    /// Occupied cell i holds `ids[cell_start[i]..cell_start[i + 1]]`.
+    /// Occupied cell i holds `ids[cell_start[i]..cell_start[i + 1]]`, each
+    /// with the octants of the cell its sphere's reach box overlaps at the
+    /// same place of `octants` (empty on a level whose cells list few
+    /// spheres: [`octant::LISTED_FOR_OCTANTS`]).
     cell_start: Vec<u32>,
     ids: Vec<u32>,
+    octants: Vec<Octants>,
 }
 
 /// A summary of one level, for reports.
@@ -81,7 +89,10 @@ pub struct LevelInfo {
 
 impl Level {
     fn bytes(&self) -> usize {
-        self.table.bytes() + self.occupancy.bytes() + 4 * (self.cell_start.len() + self.ids.len())
+        self.table.bytes()
+            + self.occupancy.bytes()
+            + 4 * (self.cell_start.len() + self.ids.len())
+            + self.octants.len()
     }
 
     #[inline(always)]
@@ -420,34 +431,25 @@ impl<R: Real> VoxelHashGrid<R> {
         budget: &mut impl Tests,
     ) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
-        let mut nearest = Nearest::new(t_max);
-        let mut test = |i: u32, nearest: &mut Nearest<R>| {
-            budget.spend(1);
-            nearest.offer(&self.spheres[i as usize], ray, t_min);
+        let mut seek = SeekNearest {
+            spheres: &self.spheres,
+            ray,
+            t_min,
+            nearest: Nearest::new(t_max),
+            mailbox: Mailbox::new(),
+            budget,
+            slack: 0.0,
         };
         for &i in &self.short {
-            test(i, &mut nearest);
+            seek.test(i);
         }
-        let mut mailbox = Mailbox::new();
         for level in &self.levels {
-            let slack = level.slack / wide.length;
-            let reach = search_end(nearest.best.map_or(t_max, |b| b.t)) + slack;
-            level.walk(
-                &wide,
-                search_start(t_min) - slack,
-                reach,
-                self.empty_space,
-                |ids| {
-                    for &i in ids {
-                        if mailbox.first_visit(i) {
-                            test(i, &mut nearest);
-                        }
-                    }
-                    nearest.search_end().map_or(f64::INFINITY, |t| t + slack)
-                },
-            );
+            seek.slack = level.slack / wide.length;
+            let reach = search_end(seek.nearest.best.map_or(t_max, |b| b.t)) + seek.slack;
+            let start = search_start(t_min) - seek.slack;
+            level.walk(&wide, start, reach, self.empty_space, &mut seek);
         }
-        nearest.best
+        seek.nearest.best
     }
 
     /// Whether testing every sphere for each of `rays` rays fits in a
@@ -490,10 +492,8 @@ impl<R: Real> VoxelHashGrid<R> {
         if let Some(&i) = self.short.iter().find(|&&i| self.blocks(i, ray, t_max)) {
             return Some(i);
         }
-        let mut mailbox = Mailbox::new();
-        self.levels
-            .iter()
-            .find_map(|level| self.blocker_in(level, &wide, ray, t_max, &mut mailbox, budget))
+        let mut seek = SeekBlocker::new(self, ray, t_max, budget);
+        self.levels.iter().find_map(|level| seek.walk(level, &wide))
     }
 
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
@@ -504,40 +504,89 @@ impl<R: Real> VoxelHashGrid<R> {
             .intersect(ray, R::zero(), t_max)
             .is_some()
     }
+}
 
-    /// A sphere of `level` (its position in `spheres`) that meets the ray
-    /// (`wide` in f64) with t in (0, t_max), spending one of `budget` per test.
-    fn blocker_in(
-        &self,
-        level: &Level,
-        wide: &Ray64,
-        ray: &Ray<R>,
-        t_max: R,
-        mailbox: &mut Mailbox,
-        budget: &mut impl Tests,
-    ) -> Option<u32> {
+/// A single ray's search for its nearest hit, level after level: in each
+/// cell a walk reaches, the spheres not tested yet.
+struct SeekNearest<'a, R: Real, B: Tests> {
+    spheres: &'a [Candidate<R>],
+    ray: &'a Ray<R>,
+    t_min: R,
+    nearest: Nearest<R>,
+    mailbox: Mailbox,
+    budget: &'a mut B,
+    /// The walked level's pad in t, which the walk's end keeps beyond the best t.
+    slack: f64,
+}
+
+impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
+    #[inline(always)]
+    fn test(&mut self, i: u32) {
+        self.budget.spend(1);
+        self.nearest
+            .offer(&self.spheres[i as usize], self.ray, self.t_min);
+    }
+}
+
+impl<R: Real, B: Tests> Visit for SeekNearest<'_, R, B> {
+    #[inline(always)]
+    fn cell(&mut self, spheres: impl Iterator<Item = u32>) -> f64 {
+        for i in spheres {
+            if self.mailbox.first_visit(i) {
+                self.test(i);
+            }
+        }
+        let end = self.nearest.search_end();
+        end.map_or(f64::INFINITY, |t| t + self.slack)
+    }
+}
+
+/// A single ray's search for any sphere blocking it with t in (0, t_max),
+/// level after level: a walk stops at the first cell that holds one.
+struct SeekBlocker<'a, R: Real, B: Tests> {
+    grid: &'a VoxelHashGrid<R>,
+    ray: &'a Ray<R>,
+    t_max: R,
+    mailbox: Mailbox,
+    budget: &'a mut B,
+    blocker: Option<u32>,
+}
+
+impl<'a, R: Real, B: Tests> SeekBlocker<'a, R, B> {
+    fn new(grid: &'a VoxelHashGrid<R>, ray: &'a Ray<R>, t_max: R, budget: &'a mut B) -> Self {
+        SeekBlocker {
+            grid,
+            ray,
+            t_max,
+            mailbox: Mailbox::new(),
+            budget,
+            blocker: None,
+        }
+    }
+
+    /// A sphere of `level` (its position in the grid's spheres) that blocks
+    /// the ray (`wide` in f64), spending one of the budget per test.
+    fn walk(&mut self, level: &Level, wide: &Ray64) -> Option<u32> {
         let slack = level.slack / wide.length;
-        let mut blocker = None;
-        level.walk(
-            wide,
-            -slack,
-            search_end(t_max) + slack,
-            self.empty_space,
-            |ids| {
-                blocker = ids.iter().copied().find(|&i| {
-                    mailbox.first_visit(i) && {
-                        budget.spend(1);
-                        self.blocks(i, ray, t_max)
-                    }
-                });
-                if blocker.is_some() {
-                    f64::NEG_INFINITY
-                } else {
-                    f64::INFINITY
+        let end = search_end(self.t_max) + slack;
+        level.walk(wide, -slack, end, self.grid.empty_space, self);
+        self.blocker
+    }
+}
+
+impl<R: Real, B: Tests> Visit for SeekBlocker<'_, R, B> {
+    #[inline(always)]
+    fn cell(&mut self, spheres: impl Iterator<Item = u32>) -> f64 {
+        for i in spheres {
+            if self.mailbox.first_visit(i) {
+                self.budget.spend(1);
+                if self.grid.blocks(i, self.ray, self.t_max) {
+                    self.blocker = Some(i);
+                    return f64::NEG_INFINITY;
                 }
-            },
-        );
-        blocker
+            }
+        }
+        f64::INFINITY
     }
 }
 

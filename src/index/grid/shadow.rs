@@ -36,7 +36,7 @@ use super::cone::Cones;
 use super::packet::{groups_of, take_masks, PacketMailbox, GROUPS, LANES, RAYS};
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
-use super::{Level, Mailbox, TestBudget, Tests, VoxelHashGrid};
+use super::{Level, SeekBlocker, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{bounding_box, Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::Answered;
@@ -418,7 +418,7 @@ impl<R: Real> VoxelHashGrid<R> {
                 continue;
             };
             let blocked = self.blocked_after_last(&ray, last_blocker, budget, |budget| {
-                self.blocker_in(level, &wide, &ray, R::one(), &mut Mailbox::new(), budget)
+                SeekBlocker::new(self, &ray, R::one(), budget).walk(level, &wide)
             });
             if blocked {
                 lanes.blocked |= 1 << i;

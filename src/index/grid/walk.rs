@@ -11,7 +11,12 @@
 //! moving to the first cell beyond the cube along the ray; an empty block
 //! alone (the commonest, beside a sphere) is crossed in the few cell steps
 //! the ray takes through it, which cost less than that one step.
+//!
+//! On a level whose cells list many spheres, each reference keeps the
+//! octants of its cell its sphere overlaps, and the walk offers a visit only
+//! the spheres in the octants the ray crosses ([`super::octant`]).
 
+use super::octant::{OctantRay, Octants, FILTERED_FROM};
 use super::table::{block_key, cell_bit, Block, BlockKey, Region, BLOCK_SHIFT, BLOCK_SIDE};
 use super::{EmptySpace, Level};
 use crate::geometry::{Ray, Real, Vec3Ops};
@@ -42,6 +47,29 @@ impl Ray64 {
             length,
         })
     }
+}
+
+/// What a walk does in each occupied cell it reaches.
+pub trait Visit {
+    /// Offered, nearest cell first, the cell's spheres the ray can meet
+    /// there (every one, or those in the octants it crosses: [`super::octant`]);
+    /// returns the t beyond which nothing more is wanted.
+    ///
+    /// Generic over the iterator, so the walk of a level without octants
+    /// runs a visit that never looks for them.
+    fn cell(&mut self, spheres: impl Iterator<Item = u32>) -> f64;
+}
+
+/// The spheres of a cell in octants the ray crosses there.
+#[inline(always)]
+fn in_octants<'a>(
+    ids: &'a [u32],
+    octants: &'a [Octants],
+    crossed: Octants,
+) -> impl Iterator<Item = u32> + 'a {
+    (ids.iter().zip(octants))
+        .filter(move |(_, o)| o.meets(crossed))
+        .map(|(&i, _)| i)
 }
 
 /// The per-axis constants a ray's walk through a level steps with.
@@ -253,17 +281,75 @@ impl Level {
         floor_to_int((p - self.origin[axis]) * self.per_cell).clamp(lo, hi)
     }
 
+    /// The ray as the octants of this level's cells see it, for a walk
+    /// from cell `c` ([`OctantRay`]).
+    #[inline(always)]
+    fn octant_ray(&self, ray: &Ray64, axes: &Axes, c: [i64; 3]) -> OctantRay {
+        // Along an axis the ray does not move on, the walk's cell index never
+        // changes: the half its coordinate lies in, as the build finds it.
+        let still_upper = [0, 1, 2].map(|a| {
+            let half = floor_to_int((ray.o[a] - self.origin[a]) * (2.0 * self.per_cell));
+            u8::from(axes.step[a] == 0 && half > 2 * c[a]) << a
+        });
+        OctantRay::new(
+            axes.step,
+            axes.per_plane,
+            still_upper[0] | still_upper[1] | still_upper[2],
+        )
+    }
+
+    /// Offers `visit` the spheres of occupied cell `cell` (at `c`): on a
+    /// level whose references keep octants (`FILTERED`), in a cell of
+    /// several spheres, those in the octants the ray crosses.
+    #[inline(always)]
+    fn visit_cell<const FILTERED: bool>(
+        &self,
+        octant_ray: &OctantRay,
+        t_next: &[f64; 3],
+        cell: usize,
+        visit: &mut impl Visit,
+    ) -> f64 {
+        let ids = self.candidates(cell);
+        if !FILTERED || ids.len() < FILTERED_FROM {
+            return visit.cell(ids.iter().copied());
+        }
+        let start = self.cell_start[cell] as usize;
+        let octants = &self.octants[start..start + ids.len()];
+        visit.cell(in_octants(ids, octants, octant_ray.crossed(t_next)))
+    }
+
     /// Visits, nearest first, the occupied cells the ray crosses within
-    /// [t_lo, t_hi]. `visit` gets each cell's sphere ids and returns the t
-    /// beyond which nothing more is wanted; the walk stops before entering a
-    /// cell that starts beyond it.
+    /// [t_lo, t_hi], offering `visit` each one's spheres ([`Visit`]); the
+    /// walk stops before entering a cell that starts beyond the t it returns.
+    ///
+    /// A level whose references keep no octants is walked by an instance
+    /// that never asks for them, so that it costs what a walk without the
+    /// filter would.
     pub fn walk(
         &self,
         ray: &Ray64,
         t_lo: f64,
         t_hi: f64,
         empty_space: EmptySpace,
-        mut visit: impl FnMut(&[u32]) -> f64,
+        visit: &mut impl Visit,
+    ) {
+        if self.octants.is_empty() {
+            self.walk_cells::<false>(ray, t_lo, t_hi, empty_space, visit)
+        } else {
+            self.walk_cells::<true>(ray, t_lo, t_hi, empty_space, visit)
+        }
+    }
+
+    /// [`Self::walk`], passing over spheres outside the octants the ray
+    /// crosses if `FILTERED`.
+    #[inline(always)]
+    fn walk_cells<const FILTERED: bool>(
+        &self,
+        ray: &Ray64,
+        t_lo: f64,
+        t_hi: f64,
+        empty_space: EmptySpace,
+        visit: &mut impl Visit,
     ) {
         let Some((t0, limit)) = self.clip(ray, t_lo, t_hi) else {
             return;
@@ -277,8 +363,13 @@ impl Level {
             c[a] = self.cell_at(ray, t0, a, 0, self.dims[a] - 1);
             t_next[a] = axes.crossing(a, c[a]);
         }
+        let octant_ray = if FILTERED {
+            self.octant_ray(ray, &axes, c)
+        } else {
+            OctantRay::UNUSED
+        };
         if empty_space == EmptySpace::ProbeEveryCell {
-            return self.walk_probing(&axes, c, t_next, limit, visit);
+            return self.walk_probing::<FILTERED>(&axes, &octant_ray, c, t_next, limit, visit);
         }
         let mut region = Cached::<Region>::new();
         // The occupied block the walk is in; None until it is looked up.
@@ -311,7 +402,8 @@ impl Level {
                 }
             };
             if cells.holds(bit) {
-                let wanted = visit(self.candidates(cells.cell_index(bit)));
+                let cell = cells.cell_index(bit);
+                let wanted = self.visit_cell::<FILTERED>(&octant_ray, &t_next, cell, visit);
                 limit = limit.min(wanted);
             }
             let Some(a) = self.step(&axes, &mut c, &mut t_next, limit) else {
@@ -361,18 +453,21 @@ impl Level {
     }
 
     /// [`Self::walk`] one cell at a time, probing the block table in each.
-    fn walk_probing(
+    fn walk_probing<const FILTERED: bool>(
         &self,
         axes: &Axes,
+        octant_ray: &OctantRay,
         mut c: [i64; 3],
         mut t_next: [f64; 3],
         mut limit: f64,
-        mut visit: impl FnMut(&[u32]) -> f64,
+        visit: &mut impl Visit,
     ) {
         loop {
             if let Some(b) = self.table.get(c.map(|v| v >> BLOCK_SHIFT)) {
                 if b.holds(cell_bit(c)) {
-                    limit = limit.min(visit(self.candidates(b.cell_index(cell_bit(c)))));
+                    let cell = b.cell_index(cell_bit(c));
+                    let wanted = self.visit_cell::<FILTERED>(octant_ray, &t_next, cell, visit);
+                    limit = limit.min(wanted);
                 }
             }
             if self.step(axes, &mut c, &mut t_next, limit).is_none() {

@@ -25,6 +25,16 @@ pub(super) struct Lattice {
 }
 
 impl Lattice {
+    /// The lattice of half cells: the same origin, the side halved (so the
+    /// scaling doubles, exactly), twice the cells per axis.
+    pub(super) fn halves(&self) -> Lattice {
+        Lattice {
+            origin: self.origin,
+            per_cell: 2.0 * self.per_cell,
+            last: 2 * self.last + 1,
+        }
+    }
+
     /// The cells a ball overlaps: a box of them, low and high corner,
     /// clamped to the lattice.
     #[inline(always)]
