@@ -26,18 +26,16 @@
 use super::walk::{greater, lesser};
 
 /// Spheres a cell lists from which a walk passes over those outside the
-/// octants it crosses: working those out costs about as much as one and a
-/// half tests, and about half of a cell's spheres lie in other octants. Single
-/// rays, `bench` (three runs, 10⁵ families): a threshold of 2 costs uniform
-/// 5% where 3 and 4 cost it 2–4% and gain the same elsewhere (mixed +42%,
-/// floor +29%, inside +8%).
+/// octants it crosses: in a cell of fewer, working out the octants costs
+/// more than the tests it could save.
 pub const FILTERED_FROM: usize = 3;
 
 /// Spheres a level's cells list on average from which its references keep
-/// their octants: below it a walk would seldom pass over more spheres than
-/// working out its octants costs (uniform 10⁵ lists 2.3 a cell, mixed 7.7,
-/// shell 14.1, the clumps' level of clustered 6.9), and the build's pass
-/// over the references is spared.
+/// their octants (uniform 10⁵ lists 2.3 a cell, floor 2.9, mixed 7.7, shell
+/// 14.1, the clumps' level of clustered 6.9). Below it the octants cost more
+/// than they save: kept on every level (and cells of 2 filtered), single eye
+/// rays on uniform 10⁵ took 15% more instructions, floor 9% more, mixed
+/// the same (docs/index.md, "Octants of a cell").
 pub const LISTED_FOR_OCTANTS: usize = 4;
 
 /// A ray as the octants of one level's cells see it: what finding the
