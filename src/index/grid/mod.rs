@@ -25,6 +25,7 @@ mod light_buffer;
 mod occupancy;
 mod octant;
 mod packet;
+mod seek;
 mod shadow;
 mod slab;
 mod table;
@@ -37,8 +38,8 @@ use light_buffer::{LightBuffer, NoBuffer};
 use octant::Octants;
 pub use packet::RAYS as PACKET_RAYS;
 use rayon::prelude::*;
+use seek::Nearest;
 use table::BlockTable;
-use walk::{Ray64, Visit};
 
 /// How a ray crosses space no sphere occupies.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -147,69 +148,6 @@ fn search_end<R: Real>(t: R) -> f64 {
 #[inline(always)]
 fn search_start<R: Real>(t: R) -> f64 {
     t.next_down().to_f64()
-}
-
-/// The last sphere tested per slot: a sphere spanning several cells along a
-/// ray is met in consecutive cells, so a tiny direct-mapped table catches
-/// almost every repeat.
-struct Mailbox([u32; 16]);
-
-impl Mailbox {
-    fn new() -> Self {
-        Mailbox([u32::MAX; 16])
-    }
-
-    /// True the first time `id` is seen (or when an evicted id comes back).
-    #[inline(always)]
-    fn first_visit(&mut self, id: u32) -> bool {
-        let slot = &mut self.0[id as usize & 15];
-        let first = *slot != id;
-        *slot = id;
-        first
-    }
-}
-
-/// One ray's nearest hit so far, and the bound a candidate's t must stay
-/// under to be tested against it.
-struct Nearest<R: Real> {
-    best: Option<Hit<R>>,
-    /// The best t rounded up by one ulp (`t_max` before any hit): up to and
-    /// including the best t, so that an equal t with a lower id still wins,
-    /// as in brute force.
-    cap: R,
-}
-
-impl<R: Real> Nearest<R> {
-    fn new(t_max: R) -> Self {
-        Nearest {
-            best: None,
-            cap: t_max,
-        }
-    }
-
-    /// [`search_end`] of the best t, once there is a hit: the cap is that
-    /// t's next step up already (a walk asks after every occupied cell, so
-    /// the step is not taken again each time).
-    #[inline(always)]
-    fn search_end(&self) -> Option<f64> {
-        self.best.is_some().then(|| self.cap.to_f64())
-    }
-
-    /// Tests `sphere`, keeping its hit if it comes first in (t, id) order.
-    #[inline(always)]
-    fn offer(&mut self, sphere: &Candidate<R>, ray: &Ray<R>, t_min: R) {
-        let Some(t) = sphere.frame.intersect(ray, t_min, self.cap) else {
-            return;
-        };
-        let hit = Hit {
-            t,
-            sphere: sphere.id,
-        };
-        if self.best.is_none_or(|b| hit.is_before(&b)) {
-            self.best = Some(hit);
-            self.cap = t.next_up();
-        }
-    }
 }
 
 /// What a walk spends its candidate tests from.
@@ -421,37 +359,6 @@ impl<R: Real> SphereIndex<R> for VoxelHashGrid<R> {
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`SphereIndex::closest_hit`], spending one of `budget` per test (a
-    /// single ray's walk is never cut short: its caller looks between rays).
-    pub(super) fn closest_hit_spending(
-        &self,
-        ray: &Ray<R>,
-        t_min: R,
-        t_max: R,
-        budget: &mut impl Tests,
-    ) -> Option<Hit<R>> {
-        let wide = Ray64::new(ray)?;
-        let mut seek = SeekNearest {
-            spheres: &self.spheres,
-            ray,
-            t_min,
-            nearest: Nearest::new(t_max),
-            mailbox: Mailbox::new(),
-            budget,
-            slack: 0.0,
-        };
-        for &i in &self.short {
-            seek.test(i);
-        }
-        for level in &self.levels {
-            seek.slack = level.slack / wide.length;
-            let reach = search_end(seek.nearest.best.map_or(t_max, |b| b.t)) + seek.slack;
-            let start = search_start(t_min) - seek.slack;
-            level.walk(&wide, start, reach, self.empty_space, &mut seek);
-        }
-        seek.nearest.best
-    }
-
     /// Whether testing every sphere for each of `rays` rays fits in a
     /// call's budget of tests. Then a call whose walks ran out of it (a
     /// small scene whose cells crowd so that the walks cost more than
@@ -484,18 +391,6 @@ impl<R: Real> VoxelHashGrid<R> {
         self.blocker(ray, t_max, budget).is_some()
     }
 
-    /// A sphere (its position in `spheres`) that meets the ray with t in
-    /// (0, t_max), spending one of `budget` per test.
-    pub(super) fn blocker(&self, ray: &Ray<R>, t_max: R, budget: &mut impl Tests) -> Option<u32> {
-        let wide = Ray64::new(ray)?;
-        budget.spend(self.short.len() as u64);
-        if let Some(&i) = self.short.iter().find(|&&i| self.blocks(i, ray, t_max)) {
-            return Some(i);
-        }
-        let mut seek = SeekBlocker::new(self, ray, t_max, budget);
-        self.levels.iter().find_map(|level| seek.walk(level, &wide))
-    }
-
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
     #[inline(always)]
     fn blocks(&self, i: u32, ray: &Ray<R>, t_max: R) -> bool {
@@ -503,90 +398,6 @@ impl<R: Real> VoxelHashGrid<R> {
             .frame
             .intersect(ray, R::zero(), t_max)
             .is_some()
-    }
-}
-
-/// A single ray's search for its nearest hit, level after level: in each
-/// cell a walk reaches, the spheres not tested yet.
-struct SeekNearest<'a, R: Real, B: Tests> {
-    spheres: &'a [Candidate<R>],
-    ray: &'a Ray<R>,
-    t_min: R,
-    nearest: Nearest<R>,
-    mailbox: Mailbox,
-    budget: &'a mut B,
-    /// The walked level's pad in t, which the walk's end keeps beyond the best t.
-    slack: f64,
-}
-
-impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
-    #[inline(always)]
-    fn test(&mut self, i: u32) {
-        self.budget.spend(1);
-        self.nearest
-            .offer(&self.spheres[i as usize], self.ray, self.t_min);
-    }
-}
-
-impl<R: Real, B: Tests> Visit for SeekNearest<'_, R, B> {
-    #[inline(always)]
-    fn cell(&mut self, spheres: impl Iterator<Item = u32>) -> f64 {
-        for i in spheres {
-            if self.mailbox.first_visit(i) {
-                self.test(i);
-            }
-        }
-        let end = self.nearest.search_end();
-        end.map_or(f64::INFINITY, |t| t + self.slack)
-    }
-}
-
-/// A single ray's search for any sphere blocking it with t in (0, t_max),
-/// level after level: a walk stops at the first cell that holds one.
-struct SeekBlocker<'a, R: Real, B: Tests> {
-    grid: &'a VoxelHashGrid<R>,
-    ray: &'a Ray<R>,
-    t_max: R,
-    mailbox: Mailbox,
-    budget: &'a mut B,
-    blocker: Option<u32>,
-}
-
-impl<'a, R: Real, B: Tests> SeekBlocker<'a, R, B> {
-    fn new(grid: &'a VoxelHashGrid<R>, ray: &'a Ray<R>, t_max: R, budget: &'a mut B) -> Self {
-        SeekBlocker {
-            grid,
-            ray,
-            t_max,
-            mailbox: Mailbox::new(),
-            budget,
-            blocker: None,
-        }
-    }
-
-    /// A sphere of `level` (its position in the grid's spheres) that blocks
-    /// the ray (`wide` in f64), spending one of the budget per test.
-    fn walk(&mut self, level: &Level, wide: &Ray64) -> Option<u32> {
-        let slack = level.slack / wide.length;
-        let end = search_end(self.t_max) + slack;
-        level.walk(wide, -slack, end, self.grid.empty_space, self);
-        self.blocker
-    }
-}
-
-impl<R: Real, B: Tests> Visit for SeekBlocker<'_, R, B> {
-    #[inline(always)]
-    fn cell(&mut self, spheres: impl Iterator<Item = u32>) -> f64 {
-        for i in spheres {
-            if self.mailbox.first_visit(i) {
-                self.budget.spend(1);
-                if self.grid.blocks(i, self.ray, self.t_max) {
-                    self.blocker = Some(i);
-                    return f64::NEG_INFINITY;
-                }
-            }
-        }
-        f64::INFINITY
     }
 }
 

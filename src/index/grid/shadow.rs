@@ -34,9 +34,10 @@
 
 use super::cone::Cones;
 use super::packet::{groups_of, take_masks, PacketMailbox, GROUPS, LANES, RAYS};
+use super::seek::SeekBlocker;
 use super::slab::{set_bits, Packet, Searching};
 use super::walk::Ray64;
-use super::{Level, SeekBlocker, TestBudget, Tests, VoxelHashGrid};
+use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{bounding_box, Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::Answered;
