@@ -27,7 +27,8 @@ use super::walk::{greater, lesser};
 
 /// Spheres a cell lists from which a walk passes over those outside the
 /// octants it crosses: in a cell of fewer, working out the octants costs
-/// more than the tests it could save.
+/// more than the tests it could save (filtering cells of 2 as well, single
+/// eye rays took 0.7% more instructions on mixed 10⁵, 0.1% on shell).
 pub const FILTERED_FROM: usize = 3;
 
 /// Spheres a level's cells list on average from which its references keep
