@@ -23,9 +23,9 @@ pub(super) fn reference_octants(
     (order, first): (&[u32], usize),
     extents: &Extents,
 ) -> Vec<Octants> {
-    // Each sphere's box of half cells, by its number: read from the extents
-    // once a sphere (in id order, scattered), where a reference would read
-    // them once each; a cell's spheres have neighbouring numbers.
+    // Each sphere's box of half cells, by its number: its extents read once
+    // (scattered, as numbers follow cells and not ids), where a reference
+    // would read them once each; a cell's spheres have neighbouring numbers.
     let halves = lattice.halves();
     let half_boxes: Vec<([i64; 3], [i64; 3])> = order[first..]
         .par_iter()
