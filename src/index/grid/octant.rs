@@ -183,6 +183,82 @@ impl Octants {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// A coordinate's place on the lattice of half cells of side `cell`
+    /// from 0, in units of half cells.
+    fn in_halves(x: f64, cell: f64) -> f64 {
+        x * (2.0 / cell)
+    }
+
+    proptest! {
+        /// Every octant the ray's segment through a cell passes through is
+        /// among those `crossed` gives, at cell sides from 2⁻³⁰ to 2³⁰ and
+        /// for rays along axes; and there are at most four (a segment
+        /// crosses each of the three mid-planes once at most).
+        #[test]
+        fn crossed_holds_every_octant_the_segment_passes_through(
+            side in -30i32..30,
+            cell_at in prop::array::uniform3(-(1i64 << 20)..(1i64 << 20)),
+            start in prop::array::uniform3(0.0f64..1.0),
+            dir in prop::array::uniform3(prop_oneof![
+                Just(0.0f64), Just(-0.0f64), -1.0f64..1.0, 1e-30f64..1e-20
+            ]),
+            t_in_cell in 0.0f64..1.0,
+        ) {
+            let cell = 2f64.powi(side);
+            // A ray starting in cell `cell_at`, and the cell it is in at a
+            // later t, as the walk would find them (the lattice from 0).
+            let o: [f64; 3] = std::array::from_fn(|a| (cell_at[a] as f64 + start[a]) * cell);
+            // A ray of no direction never reaches a walk.
+            let dir = if dir.iter().all(|&d| d == 0.0) { [1.0, dir[1], dir[2]] } else { dir };
+            let p: [f64; 3] = std::array::from_fn(|a| o[a] + t_in_cell * cell * dir[a]);
+            let c: [i64; 3] = std::array::from_fn(|a| (p[a] / cell).floor() as i64);
+            let step = dir.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64);
+            let per_plane: [f64; 3] =
+                std::array::from_fn(|a| if dir[a] == 0.0 { 0.0 } else { cell / dir[a] });
+            let crossing = |a: usize, i: i64| {
+                if dir[a] == 0.0 {
+                    f64::INFINITY
+                } else {
+                    -o[a] / dir[a] + i as f64 * per_plane[a]
+                }
+            };
+            let up = step.map(|s| i64::from(s > 0));
+            let t_next: [f64; 3] = std::array::from_fn(|a| crossing(a, c[a] + up[a]));
+            let still_upper = (0..3).fold(0u8, |bits, a| {
+                let upper = step[a] == 0 && in_halves(o[a], cell).floor() as i64 > 2 * c[a];
+                bits | u8::from(upper) << a
+            });
+            let crossed = OctantRay::new(step, per_plane, still_upper).crossed(&t_next);
+            prop_assert!(crossed.0.count_ones() <= 4, "{:08b}", crossed.0);
+
+            // Sample the segment between the cell's entry and exit planes,
+            // passing over points within rounding of a cell's or octant's
+            // face, whose side the pad settles.
+            let t_in = (0..3)
+                .filter(|&a| step[a] != 0)
+                .map(|a| crossing(a, c[a] + 1 - up[a]))
+                .fold(f64::NEG_INFINITY, f64::max);
+            let t_out = t_next.iter().copied().fold(f64::INFINITY, f64::min);
+            for k in 0..=64 {
+                let t = t_in + (t_out - t_in) * (k as f64 / 64.0);
+                let mut halves = 0u8;
+                let mut clear = true;
+                for a in 0..3 {
+                    let h = in_halves(o[a] + t * dir[a], cell) - 2.0 * c[a] as f64;
+                    clear &= (h - h.round()).abs() > 1e-6 && h > 0.0 && h < 2.0;
+                    halves |= u8::from(h >= 1.0) << a;
+                }
+                if clear {
+                    prop_assert!(
+                        crossed.meets(Octants::one(halves)),
+                        "t {t} halves {halves:03b} crossed {:08b}", crossed.0
+                    );
+                }
+            }
+        }
+    }
 
     /// Every box of half cells that overlaps cell (1, 2, 3), from the half
     /// cell before it to the one after it, against the octants counted one
