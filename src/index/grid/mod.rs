@@ -96,10 +96,15 @@ impl Level {
             + self.octants.len()
     }
 
+    /// Where occupied cell `cell`'s references lie in `ids` (and `octants`).
+    #[inline(always)]
+    fn references(&self, cell: usize) -> std::ops::Range<usize> {
+        self.cell_start[cell] as usize..self.cell_start[cell + 1] as usize
+    }
+
     #[inline(always)]
     fn candidates(&self, cell: usize) -> &[u32] {
-        let (a, b) = (self.cell_start[cell], self.cell_start[cell + 1]);
-        &self.ids[a as usize..b as usize]
+        &self.ids[self.references(cell)]
     }
 }
 

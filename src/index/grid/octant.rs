@@ -44,7 +44,8 @@ pub const LISTED_FOR_OCTANTS: usize = 4;
 /// that keeps octants.
 pub struct OctantRay {
     /// How long the ray takes to cross a cell along each axis, `|cell / d|`,
-    /// and half that: +∞ where d = ±0.
+    /// +∞ where d = ±0; and half that, kept beside it as every filtered cell
+    /// asks for both (worked out there, `crossed` takes 7% more instructions).
     span: [f64; 3],
     half_span: [f64; 3],
     /// Bits of the axes the ray moves up along, and of those it moves on.

@@ -84,9 +84,10 @@ impl<R: Real> VoxelHashGrid<R> {
     ) -> Option<Hit<R>> {
         let wide = Ray64::new(ray)?;
         let mut seek = SeekNearest {
-            spheres: &self.spheres,
+            grid: self,
             ray,
             t_min,
+            t_max,
             nearest: Nearest::new(t_max),
             mailbox: Mailbox::new(),
             budget,
@@ -96,10 +97,7 @@ impl<R: Real> VoxelHashGrid<R> {
             seek.test(i);
         }
         for level in &self.levels {
-            seek.slack = level.slack / wide.length;
-            let reach = search_end(seek.nearest.best.map_or(t_max, |b| b.t)) + seek.slack;
-            let start = search_start(t_min) - seek.slack;
-            level.walk(&wide, start, reach, self.empty_space, &mut seek);
+            seek.walk(level, &wide);
         }
         seek.nearest.best
     }
@@ -120,9 +118,10 @@ impl<R: Real> VoxelHashGrid<R> {
 /// A single ray's search for its nearest hit, level after level: in each
 /// cell a walk reaches, the spheres not tested yet.
 struct SeekNearest<'a, R: Real, B: Tests> {
-    spheres: &'a [Candidate<R>],
+    grid: &'a VoxelHashGrid<R>,
     ray: &'a Ray<R>,
     t_min: R,
+    t_max: R,
     nearest: Nearest<R>,
     mailbox: Mailbox,
     budget: &'a mut B,
@@ -135,7 +134,16 @@ impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
     fn test(&mut self, i: u32) {
         self.budget.spend(1);
         self.nearest
-            .offer(&self.spheres[i as usize], self.ray, self.t_min);
+            .offer(&self.grid.spheres[i as usize], self.ray, self.t_min);
+    }
+
+    /// Searches `level` (the ray `wide` in f64) up to the best hit so far.
+    fn walk(&mut self, level: &Level, wide: &Ray64) {
+        self.slack = level.slack / wide.length;
+        let best_t = self.nearest.best.map_or(self.t_max, |b| b.t);
+        let (start, end) = (search_start(self.t_min), search_end(best_t));
+        let span = (start - self.slack, end + self.slack);
+        level.walk(wide, span.0, span.1, self.grid.empty_space, self);
     }
 }
 
