@@ -105,64 +105,97 @@ impl Occupancy {
 /// shortest chessboard path can be taken monotone in each axis, split into a
 /// part the forward pass propagates and one the backward pass does. The
 /// passes run over a copy with a border one group thick of 255s (empty,
-/// as everything beyond the box is): every entry of the box then finds its
-/// 13 neighbours at fixed offsets, with no test for the box's edges.
+/// as everything beyond the box is), so that every row has its neighbours
+/// at fixed offsets, with no test for the box's edges.
+///
+/// A pass goes row by row (along x). Twelve of an entry's 13 neighbours lie
+/// in the four rows the pass has finished (the row before in its plane and
+/// three in the plane before), three to a row: their least is taken for the
+/// whole row at once, as element-wise minima of slices, which the compiler
+/// turns into vector instructions. Only the thirteenth, the entry before in
+/// the same row, is carried along it one entry at a time.
 fn chessboard_distances(distance: &mut [u8], dims: [i64; 3]) {
     let [nx, ny, nz] = dims.map(|n| n as usize);
     let (px, py) = (nx + 2, ny + 2);
-    let at = |x: usize, y: usize, z: usize| (z * py + y) * px + x;
+    let row_at = |y: usize, z: usize| (z * py + y) * px;
     let mut padded = vec![u8::MAX; px * py * (nz + 2)];
-    let rows = |z: usize, y: usize| (at(1, y + 1, z + 1), (z * ny + y) * nx);
-    for (z, y) in (0..nz).flat_map(|z| (0..ny).map(move |y| (z, y))) {
-        let (to, from) = rows(z, y);
-        padded[to..to + nx].copy_from_slice(&distance[from..from + nx]);
+    let rows = || (1..=nz).flat_map(|z| (1..=ny).map(move |y| (y, z)));
+    let inside = |y: usize, z: usize| row_at(y, z) + 1..row_at(y, z) + 1 + nx;
+    for (y, z) in rows() {
+        let from = ((z - 1) * ny + y - 1) * nx;
+        padded[inside(y, z)].copy_from_slice(&distance[from..from + nx]);
     }
-    let before = VISITED_BEFORE.map(|(dx, dy, dz)| (dz * py as i64 + dy) * px as i64 + dx);
-    let lower = |padded: &mut [u8], i: usize, forward: bool| {
-        if padded[i] != 0 {
-            let nearest = before.iter().fold(padded[i] - 1, |m, &o| {
-                let neighbour = if forward { i as i64 - o } else { i as i64 + o };
-                m.min(padded[neighbour as usize])
-            });
-            padded[i] = nearest.saturating_add(1);
+    let mut nearest = vec![0u8; px];
+    for (y, z) in rows() {
+        let done = [(y - 1, z), (y - 1, z - 1), (y, z - 1), (y + 1, z - 1)];
+        let done = done.map(|(y, z)| row_at(y, z));
+        lower_row(&mut padded, &mut nearest, row_at(y, z), done, Pass::Forward);
+    }
+    for z in (1..=nz).rev() {
+        for y in (1..=ny).rev() {
+            let done = [(y + 1, z), (y + 1, z + 1), (y, z + 1), (y - 1, z + 1)];
+            let done = done.map(|(y, z)| row_at(y, z));
+            lower_row(
+                &mut padded,
+                &mut nearest,
+                row_at(y, z),
+                done,
+                Pass::Backward,
+            );
         }
-    };
-    let inside = |z: usize, y: usize| at(1, y + 1, z + 1)..at(nx + 1, y + 1, z + 1);
-    for (z, y) in (0..nz).flat_map(|z| (0..ny).map(move |y| (z, y))) {
-        inside(z, y).for_each(|i| lower(&mut padded, i, true));
     }
-    for (z, y) in (0..nz)
-        .rev()
-        .flat_map(|z| (0..ny).rev().map(move |y| (z, y)))
-    {
-        inside(z, y)
-            .rev()
-            .for_each(|i| lower(&mut padded, i, false));
-    }
-    for (z, y) in (0..nz).flat_map(|z| (0..ny).map(move |y| (z, y))) {
-        let (from, to) = rows(z, y);
-        distance[to..to + nx].copy_from_slice(&padded[from..from + nx]);
+    for (y, z) in rows() {
+        let to = ((z - 1) * ny + y - 1) * nx;
+        distance[to..to + nx].copy_from_slice(&padded[inside(y, z)]);
     }
 }
 
-/// The 13 neighbours a forward raster pass (x fastest, then y, then z)
-/// visits before an entry, as offsets to be negated: a backward pass
-/// visits their mirror images first.
-const VISITED_BEFORE: [(i64, i64, i64); 13] = [
-    (1, 0, 0),
-    (-1, 1, 0),
-    (0, 1, 0),
-    (1, 1, 0),
-    (-1, -1, 1),
-    (0, -1, 1),
-    (1, -1, 1),
-    (-1, 0, 1),
-    (0, 0, 1),
-    (1, 0, 1),
-    (-1, 1, 1),
-    (0, 1, 1),
-    (1, 1, 1),
-];
+/// Which way a raster pass goes: x fastest, then y, then z, each up
+/// (forward) or each down (backward).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Pass {
+    Forward,
+    Backward,
+}
+
+/// One row of a raster pass: each entry not 0 inside the box, of the padded
+/// row starting at `row`, takes one more than the least of its three
+/// neighbours in each finished row (starting at `done`) and of the entry
+/// the pass visited just before it, if that is less. `nearest` is room for
+/// a padded row.
+fn lower_row(padded: &mut [u8], nearest: &mut [u8], row: usize, done: [usize; 4], pass: Pass) {
+    let px = nearest.len();
+    nearest.fill(u8::MAX);
+    for start in done {
+        let r = &padded[start..start + px];
+        // Entry x (1 ..= px − 2) takes columns x − 1, x and x + 1.
+        for (m, ((a, b), c)) in nearest[1..px - 1]
+            .iter_mut()
+            .zip(r.iter().zip(&r[1..]).zip(&r[2..]))
+        {
+            *m = (*m).min(*a).min(*b).min(*c);
+        }
+    }
+    let current = &mut padded[row..row + px];
+    // Entry x: its own value, or one more than its nearest neighbour's.
+    let mut lower = |x: usize, before: u8| {
+        let d = current[x];
+        if d != 0 {
+            current[x] = d.min(nearest[x].min(before).saturating_add(1));
+        }
+        current[x]
+    };
+    let mut before = u8::MAX;
+    if pass == Pass::Backward {
+        for x in (1..px - 1).rev() {
+            before = lower(x, before);
+        }
+    } else {
+        for x in 1..px - 1 {
+            before = lower(x, before);
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {
