@@ -37,10 +37,10 @@ pub(super) fn split_by_density(extents: &Extents, ids: Vec<u32>) -> Vec<Vec<u32>
         })
         .collect();
     let code = ProbeCode::new(&cells);
-    let crowded = if code.bits() <= u64::BITS {
-        crowded_members::<u64>(&code, &cells)
-    } else {
-        crowded_members::<u128>(&code, &cells)
+    let crowded = match code.dense_dims(cells.len()) {
+        Some(dims) => crowded_members_counted(&code, dims, &cells),
+        None if code.bits() <= u64::BITS => crowded_members::<u64>(&code, &cells),
+        None => crowded_members::<u128>(&code, &cells),
     };
     let dense = crowded.iter().filter(|c| c.load(Relaxed)).count();
     let smaller = dense.min(ids.len() - dense) as f64;
@@ -60,6 +60,10 @@ pub(super) fn split_by_density(extents: &Extents, ids: Vec<u32>) -> Vec<Vec<u32>
 /// Probe cells repeat every this many a side: cells that far apart count
 /// as one.
 const PROBE_WRAP: i64 = 1 << 21;
+/// Probe cells per member up to which a class's centres are counted in a
+/// dense array over its box of probe cells (one byte a cell per thread),
+/// rather than found in runs of sorted pairs.
+const COUNTED_CELLS_PER_MEMBER: u128 = 4;
 
 /// (probe cell, member) pairs packed into one integer that sorts by cell,
 /// then the member's position. On an axis whose cells span less than
@@ -71,6 +75,8 @@ const PROBE_WRAP: i64 = 1 << 21;
 /// about 2⁴⁴ probe cells.
 pub(super) struct ProbeCode {
     low: [i64; 3],
+    /// Probe cells per axis from `low`, where every axis is narrow.
+    dims: Option<[u128; 3]>,
     /// Bits of each axis's coordinate.
     axis_bits: [u32; 3],
     member_bits: u32,
@@ -93,6 +99,9 @@ impl ProbeCode {
         let narrow = |k: usize| span(k) < i128::from(PROBE_WRAP);
         ProbeCode {
             low: [0, 1, 2].map(|k| if narrow(k) { low[k] } else { 0 }),
+            dims: (0..3)
+                .all(narrow)
+                .then(|| [0, 1, 2].map(|k| span(k) as u128 + 1)),
             axis_bits: [0, 1, 2].map(|k| match narrow(k) {
                 true => u128::BITS - span(k).leading_zeros(),
                 false => PROBE_WRAP.trailing_zeros(),
@@ -103,6 +112,22 @@ impl ProbeCode {
 
     fn bits(&self) -> u32 {
         self.axis_bits.iter().sum::<u32>() + self.member_bits
+    }
+
+    /// The probe cells per axis of a box small enough to count `members`
+    /// centres in densely ([`COUNTED_CELLS_PER_MEMBER`]).
+    fn dense_dims(&self, members: usize) -> Option<[usize; 3]> {
+        let dims = self.dims?;
+        let cells = dims.iter().product::<u128>();
+        (cells <= COUNTED_CELLS_PER_MEMBER * members as u128).then(|| dims.map(|n| n as usize))
+    }
+
+    /// Probe cell `c`'s place in the dense array of [`Self::dense_dims`]:
+    /// two cells share it iff they are equal.
+    #[inline(always)]
+    fn dense_index(&self, dims: [usize; 3], c: [i64; 3]) -> usize {
+        let d = |k: usize| (c[k] - self.low[k]) as usize;
+        (d(0) * dims[1] + d(1)) * dims[2] + d(2)
     }
 
     fn pack<K: PairKey>(&self, c: [i64; 3], member: usize) -> K {
@@ -148,6 +173,40 @@ fn crowded_members<K: PairKey>(code: &ProbeCode, cells: &[[i64; 3]]) -> Vec<Atom
         }
     });
     crowded
+}
+
+/// [`crowded_members`] counted in a dense array over the probe cells'
+/// box, `dims` a side ([`ProbeCode::dense_dims`]): each thread counts its
+/// share of the centres per cell (saturating, which keeps every count
+/// above [`SPARSE_NEIGHBOURS`] above it), the counts are summed, and each
+/// member reads its cell's. For a dense class a few passes over the
+/// members, against a sort's.
+fn crowded_members_counted(
+    code: &ProbeCode,
+    dims: [usize; 3],
+    cells: &[[i64; 3]],
+) -> Vec<AtomicBool> {
+    let share = cells.len().div_ceil(rayon::current_num_threads()).max(1);
+    let counts = (cells.par_chunks(share))
+        .map(|chunk| {
+            let mut counts = vec![0u8; dims.iter().product()];
+            for &c in chunk {
+                let n = &mut counts[code.dense_index(dims, c)];
+                *n = n.saturating_add(1);
+            }
+            counts
+        })
+        .reduce_with(|mut total, counts| {
+            (total.iter_mut().zip(counts)).for_each(|(t, n)| *t = t.saturating_add(n));
+            total
+        })
+        .unwrap_or_default();
+    (cells.par_iter())
+        .map(|&c| {
+            let n = counts[code.dense_index(dims, c)];
+            AtomicBool::new(u32::from(n) > SPARSE_NEIGHBOURS)
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -197,6 +256,16 @@ mod tests {
                 flags.into_iter().map(AtomicBool::into_inner).collect()
             };
             assert_eq!(code.bits() <= u64::BITS, !far, "{count} in {side}³");
+            let dense = code.dense_dims(count);
+            // Counted densely where the box is small; the wide cases are not.
+            assert_eq!(dense.is_some(), side <= 30 && !far, "{count} in {side}³");
+            if let Some(dims) = dense {
+                assert_eq!(
+                    got(crowded_members_counted(&code, dims, &cells)),
+                    want,
+                    "{count} in {side}³, counted"
+                );
+            }
             if !far {
                 assert_eq!(
                     got(crowded_members::<u64>(&code, &cells)),
