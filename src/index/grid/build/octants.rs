@@ -4,7 +4,9 @@
 use super::extent::Extents;
 use super::lattice::Lattice;
 use crate::index::grid::octant::Octants;
-use crate::index::grid::table::{unpack_key, Block, BlockKey, BLOCK_SHIFT, BLOCK_SIDE};
+use crate::index::grid::table::{
+    unpack_key, Block, BlockKey, BLOCK_SHIFT, BLOCK_SIDE, MAX_BLOCKS_PER_AXIS,
+};
 use rayon::prelude::*;
 
 /// Fewest blocks per task: most hold a few cells of a few spheres each.
@@ -26,10 +28,17 @@ pub(super) fn reference_octants(
     // Each sphere's box of half cells, by its number: its extents read once
     // (scattered, as numbers follow cells and not ids), where a reference
     // would read them once each; a cell's spheres have neighbouring numbers.
+    // Kept in 32 bits (half the fresh pages of 64), which hold every half
+    // cell's index.
+    const { assert!(MAX_BLOCKS_PER_AXIS << (BLOCK_SHIFT + 1) <= i32::MAX as i64) };
     let halves = lattice.halves();
-    let half_boxes: Vec<([i64; 3], [i64; 3])> = order[first..]
+    let narrow = |c: [i64; 3]| c.map(|v| v as i32);
+    let half_boxes: Vec<([i32; 3], [i32; 3])> = order[first..]
         .par_iter()
-        .map(|&id| halves.cell_box(extents.center[id as usize], extents.reach[id as usize]))
+        .map(|&id| {
+            let (lo, hi) = halves.cell_box(extents.center[id as usize], extents.reach[id as usize]);
+            (narrow(lo), narrow(hi))
+        })
         .collect();
     let mut octants = vec![Octants::default(); candidates.len()];
     let mut rest = octants.as_mut_slice();
@@ -61,7 +70,7 @@ pub(super) fn reference_octants(
                 // The cell's numbers first: a zip reads its first side ahead.
                 for (&number, slot) in candidates[references].iter().zip(written.by_ref()) {
                     let (lo, hi) = half_boxes[number as usize - first];
-                    *slot = Octants::of_box(c, lo, hi);
+                    *slot = Octants::of_box(c, lo.map(i64::from), hi.map(i64::from));
                 }
             }
         });
