@@ -131,18 +131,16 @@ fn chessboard_distances(distance: &mut [u8], dims: [i64; 3]) {
         let done = done.map(|(y, z)| row_at(y, z));
         lower_row(&mut padded, &mut nearest, row_at(y, z), done, Pass::Forward);
     }
-    for z in (1..=nz).rev() {
-        for y in (1..=ny).rev() {
-            let done = [(y + 1, z), (y + 1, z + 1), (y, z + 1), (y - 1, z + 1)];
-            let done = done.map(|(y, z)| row_at(y, z));
-            lower_row(
-                &mut padded,
-                &mut nearest,
-                row_at(y, z),
-                done,
-                Pass::Backward,
-            );
-        }
+    for (y, z) in rows().rev() {
+        let done = [(y + 1, z), (y + 1, z + 1), (y, z + 1), (y - 1, z + 1)];
+        let done = done.map(|(y, z)| row_at(y, z));
+        lower_row(
+            &mut padded,
+            &mut nearest,
+            row_at(y, z),
+            done,
+            Pass::Backward,
+        );
     }
     for (y, z) in rows() {
         let to = ((z - 1) * ny + y - 1) * nx;
