@@ -75,8 +75,9 @@ const COUNTED_CELLS_PER_MEMBER: u128 = 4;
 /// about 2⁴⁴ probe cells.
 pub(super) struct ProbeCode {
     low: [i64; 3],
-    /// Probe cells per axis from `low`, where every axis is narrow.
-    dims: Option<[u128; 3]>,
+    /// Probe cells per axis from `low` (each under [`PROBE_WRAP`]), where
+    /// every axis is narrow.
+    dims: Option<[usize; 3]>,
     /// Bits of each axis's coordinate.
     axis_bits: [u32; 3],
     member_bits: u32,
@@ -101,7 +102,7 @@ impl ProbeCode {
             low: [0, 1, 2].map(|k| if narrow(k) { low[k] } else { 0 }),
             dims: (0..3)
                 .all(narrow)
-                .then(|| [0, 1, 2].map(|k| span(k) as u128 + 1)),
+                .then(|| [0, 1, 2].map(|k| span(k) as usize + 1)),
             axis_bits: [0, 1, 2].map(|k| match narrow(k) {
                 true => u128::BITS - span(k).leading_zeros(),
                 false => PROBE_WRAP.trailing_zeros(),
@@ -118,8 +119,8 @@ impl ProbeCode {
     /// centres in densely ([`COUNTED_CELLS_PER_MEMBER`]).
     fn dense_dims(&self, members: usize) -> Option<[usize; 3]> {
         let dims = self.dims?;
-        let cells = dims.iter().product::<u128>();
-        (cells <= COUNTED_CELLS_PER_MEMBER * members as u128).then(|| dims.map(|n| n as usize))
+        let cells = dims.iter().map(|&n| n as u128).product::<u128>();
+        (cells <= COUNTED_CELLS_PER_MEMBER * members as u128).then_some(dims)
     }
 
     /// Probe cell `c`'s place in the dense array of [`Self::dense_dims`]:
