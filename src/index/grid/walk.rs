@@ -4,11 +4,11 @@
 //! crosses the next cell boundary. That t is always recomputed from the
 //! integer index, `(origin − o)/d + i·(h/d)`, never accumulated, so it
 //! cannot drift over a million cells. An axis the ray runs parallel to (d = ±0)
-//! never steps: its next crossing is +∞. Empty space is crossed a cube at
-//! a time: the empty groups of blocks around the walk's one (as far as the
-//! level's proximity cloud says), an empty region (4×4×4 blocks), or an
-//! empty cube of 2×2×2 blocks in an occupied region in one step, the walk
-//! moving to the first cell beyond the cube along the ray; an empty block
+//! never steps: its next crossing is +∞. Empty space is crossed a box at
+//! a time: the empty groups of blocks ahead of the walk's one (as far as the
+//! level's proximity cloud for the ray's heading says), an empty region
+//! (4×4×4 blocks), or an empty cube of 2×2×2 blocks in an occupied region in
+//! one step, the walk moving to the first cell beyond the box along the ray; an empty block
 //! alone (the commonest, beside a sphere) is crossed in the few cell steps
 //! the ray takes through it, which cost less than that one step.
 //!
@@ -16,6 +16,7 @@
 //! octants of its cell its sphere overlaps, and the walk offers a visit only
 //! the spheres in the octants the ray crosses ([`super::octant`]).
 
+use super::occupancy::Heading;
 use super::octant::{OctantRay, Octants, FILTERED_FROM};
 use super::table::{block_key, cell_bit, Block, BlockKey, Region, BLOCK_SHIFT, BLOCK_SIDE};
 use super::{EmptySpace, Level};
@@ -95,6 +96,8 @@ struct Axes {
     /// How a step along the axis moves the cell's bit in its block's mask
     /// ([`cell_bit`]), while it stays in the block.
     bit_step: [i32; 3],
+    /// Which of the level's proximity clouds the walk reads.
+    heading: Heading,
 }
 
 impl Axes {
@@ -117,6 +120,7 @@ impl Axes {
             block_entry: ray.d.map(|d| if d > 0.0 { 0 } else { BLOCK_SIDE - 1 }),
             exit: [0, 1, 2].map(|a| if ray.d[a] > 0.0 { level.dims[a] } else { -1 }),
             bit_step: [0, 1, 2].map(|a| (step[a] as i32) << (a as u32 * BLOCK_SHIFT)),
+            heading: Heading::of(step),
         }
     }
 
@@ -141,8 +145,10 @@ impl Axes {
 /// Cells per region side, as a power of two (a region is 4×4×4 blocks).
 const REGION_SHIFT: u32 = 2 * BLOCK_SHIFT;
 
-/// A cube of empty cells around the walk's cell: groups of `1 << shift`
-/// cells a side, `radius` of them on every side of the group holding it.
+/// A box of empty cells ahead of the walk's cell: groups of `1 << shift`
+/// cells a side, from the group holding it to `radius` groups beyond it
+/// along each axis, in the direction the ray moves (up an axis it does not
+/// move along, which it never leaves that way).
 #[derive(Clone, Copy)]
 struct Empty {
     shift: u32,
@@ -150,12 +156,12 @@ struct Empty {
 }
 
 impl Empty {
-    /// The group of `1 << shift` cells a side holding the walk's cell.
+    /// The group of `1 << shift` cells a side holding the walk's cell, alone.
     fn group(shift: u32) -> Self {
         Empty { shift, radius: 0 }
     }
 
-    /// Whether the cube is the walk's block alone.
+    /// Whether the box is the walk's block alone.
     #[inline(always)]
     fn is_one_block(self) -> bool {
         self.shift == BLOCK_SHIFT && self.radius == 0
@@ -386,7 +392,7 @@ impl Level {
                 Some(cells) => cells,
                 None => {
                     let b = c.map(|v| v >> BLOCK_SHIFT);
-                    match self.enter_block(c, b, &mut region) {
+                    match self.enter_block(c, b, axes.heading, &mut region) {
                         Ok(cells) => {
                             bit = cell_bit(c);
                             *block.insert(cells)
@@ -423,9 +429,9 @@ impl Level {
     }
 
     /// The occupied block at block coordinates `b` the walk enters at cell
-    /// `c`, or the empty cube around it to cross in one step. Empty space at
-    /// three scales: the empty groups around `c`'s in the level's proximity
-    /// cloud, a region (4×4×4 blocks) with no occupied block, and an empty
+    /// `c`, or the empty box it starts to cross in one step. Empty space at
+    /// three scales: the empty groups ahead of `c`'s in the level's proximity
+    /// cloud for the ray's `heading`, a region (4×4×4 blocks) with no occupied block, and an empty
     /// block of an occupied region, alone or with the aligned cube of 2×2×2
     /// blocks around it, the last two read from the region's mask. An
     /// occupied block is found from the region too, without another probe.
@@ -434,9 +440,10 @@ impl Level {
         &self,
         c: [i64; 3],
         b: [i64; 3],
+        heading: Heading,
         region: &mut Cached<Region>,
     ) -> Result<Block, Empty> {
-        let distance = self.occupancy.distance(c);
+        let distance = self.occupancy.distance(c, heading);
         if distance > 0 {
             return Err(Empty {
                 shift: self.occupancy.shift,
@@ -508,7 +515,7 @@ impl Level {
     /// enters beyond the block, one cell step at a time. False when that
     /// lies beyond `limit` (finite) or outside the level. A ray crosses a
     /// block in a few steps, each a fraction of what [`Self::leave_empty`]
-    /// costs, so the walk's most frequent empty cube is crossed this way.
+    /// costs, so the walk's most frequent empty box is crossed this way.
     #[inline(always)]
     fn step_out_of_block(
         &self,
@@ -527,8 +534,8 @@ impl Level {
         }
     }
 
-    /// Moves from the empty cube around cell `c` to the first cell the ray
-    /// enters beyond it. False when that lies beyond `limit` (finite) or outside the
+    /// Moves from cell `c` across the empty box ahead of it to the first
+    /// cell the ray enters beyond the box. False when that lies beyond `limit` (finite) or outside the
     /// level.
     fn leave_empty(
         &self,
@@ -540,12 +547,12 @@ impl Level {
         empty: Empty,
     ) -> bool {
         let (shift, r) = (empty.shift, empty.radius);
-        // The cube's last cell along each axis's direction of travel: of
-        // the groups g − r ..= g + r around the walk's group g, the first
-        // cell of the lowest going down, the last cell of the highest going up.
+        // The box's last cell along each axis's direction of travel: of the
+        // groups from the walk's group g to g + r ahead, the last cell of
+        // g + r going up, the first of g − r going down.
         let last_on = |a: usize| {
             let up = axes.up[a];
-            (((c[a] >> shift) + up * (2 * r + 1) - r) << shift) - up
+            (((c[a] >> shift) + axes.step[a] * r + up) << shift) - up
         };
         // Written out rather than `[0, 1, 2].map(..)`, which is not always inlined.
         let last = [last_on(0), last_on(1), last_on(2)];
@@ -566,7 +573,7 @@ impl Level {
             } else if axes.step[k] == 0 {
                 c[k]
             } else {
-                // Between the ray's cell and the cube's last along k: only
+                // Between the ray's cell and the box's last along k: only
                 // rounding could put the exit point outside.
                 self.cell_at(ray, t_exit, k, c[k].min(last[k]), c[k].max(last[k]))
             };
