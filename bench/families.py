@@ -24,6 +24,8 @@ Families (every sphere inside the default camera's frustum unless said):
   floor       small spheres resting on a radius-1000 floor sphere, spread far
               towards the horizon
   inside      clustered, with the camera inside the biggest clump
+  islands     clustered's clumps alone in empty space: no dust, no floor
+              (most primary rays meet nothing)
   hugetiny    one sphere of radius 1e6 far away and N tiny spheres (1e-3)
 
 `--density K` scales how many spheres a primary ray crosses (default 4).
@@ -149,6 +151,7 @@ FAMILIES = {
     "shell": shell,
     "floor": floor,
     "inside": lambda rng, n, d: clustered(rng, n, d, camera_inside=True),
+    "islands": lambda rng, n, d: clumps(rng, n)[:2],
     "hugetiny": hugetiny,
 }
 
