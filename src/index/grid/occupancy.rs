@@ -26,14 +26,13 @@
 //! stretches ahead of it, which a ray crosses in one step: a ray through the
 //! wide gaps between clumps takes a few steps per level, not one per group
 //! it passes, and a ray leaving a clump behind leaps as far as the space
-//! ahead of it allows (on the clustered families, about half the steps and
-//! leaps of one cloud for every heading: docs/index.md).
+//! ahead of it allows (docs/index.md, "Proximity clouds per heading", has
+//! what that saves).
 
 use super::table::{unpack_key, BlockKey, BLOCK_SHIFT};
 use rayon::prelude::*;
 
-/// The ways a ray can move: bit `a` set where it moves up axis `a` (or not
-/// along it at all).
+/// How many headings there are: up or down each of three axes.
 pub const HEADINGS: usize = 8;
 /// Most groups the arrays may have (2 Mi, 16 MiB over the headings): the
 /// group side doubles until the box needs no more.
@@ -45,7 +44,8 @@ const GROUPS_PER_SPHERE: i64 = 1;
 /// scene of a few spheres far apart does not allocate megabytes.
 const SMALL_SCENE_GROUPS: i64 = 1 << 15;
 
-/// Which way a ray moves along each axis, as an index of the clouds.
+/// Which way a ray moves along each axis, as an index of the clouds: bit
+/// `a` set where it moves up axis `a` (or not along it at all).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Heading(usize);
 
@@ -171,16 +171,18 @@ fn distances_ahead(distance: &mut [u8], dims: [i64; 3], heading: Heading) {
     }
     let [hx, hy, hz] = [0, 1, 2].map(|a| heading.sign(a));
     // Against the heading on every axis: y and z here, x in `lower_row`.
-    let order = |n: usize, sign: i64| -> Box<dyn Iterator<Item = usize>> {
+    let against = |n: usize, sign: i64| -> Vec<usize> {
+        let up: Vec<usize> = (1..=n).collect();
         if sign > 0 {
-            Box::new((1..=n).rev())
+            up.into_iter().rev().collect()
         } else {
-            Box::new(1..=n)
+            up
         }
     };
+    let (ys, zs) = (against(ny, hy), against(nz, hz));
     let mut nearest = vec![0u8; px];
-    for z in order(nz, hz) {
-        for y in order(ny, hy) {
+    for &z in &zs {
+        for &y in &ys {
             let (y_ahead, z_ahead) = (
                 y.wrapping_add_signed(hy as isize),
                 z.wrapping_add_signed(hz as isize),
