@@ -73,7 +73,7 @@ impl<R: Real> Nearest<R> {
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`SphereIndex::closest_hit`], spending one of `budget` per test (a
+    /// [`crate::index::SphereIndex::closest_hit`], spending one of `budget` per test (a
     /// single ray's walk is never cut short: its caller looks between rays).
     pub(super) fn closest_hit_spending(
         &self,
