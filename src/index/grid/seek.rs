@@ -73,8 +73,9 @@ impl<R: Real> Nearest<R> {
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// [`crate::index::SphereIndex::closest_hit`], spending one of `budget` per test (a
-    /// single ray's walk is never cut short: its caller looks between rays).
+    /// [`crate::index::SphereIndex::closest_hit`], spending one of `budget`
+    /// per test (a single ray's walk is never cut short: its caller looks
+    /// between rays).
     pub(super) fn closest_hit_spending(
         &self,
         ray: &Ray<R>,

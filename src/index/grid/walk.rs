@@ -8,9 +8,10 @@
 //! a time: the empty groups of blocks ahead of the walk's one (as far as the
 //! level's proximity cloud for the ray's heading says), an empty region
 //! (4×4×4 blocks), or an empty cube of 2×2×2 blocks in an occupied region in
-//! one step, the walk moving to the first cell beyond the box along the ray; an empty block
-//! alone (the commonest, beside a sphere) is crossed in the few cell steps
-//! the ray takes through it, which cost less than that one step.
+//! one step, the walk moving to the first cell beyond the box along the
+//! ray; an empty block alone (the commonest, beside a sphere) is crossed in
+//! the few cell steps the ray takes through it, which cost less than that
+//! one step.
 //!
 //! On a level whose cells list many spheres, each reference keeps the
 //! octants of its cell its sphere overlaps, and the walk offers a visit only
@@ -430,11 +431,12 @@ impl Level {
 
     /// The occupied block at block coordinates `b` the walk enters at cell
     /// `c`, or the empty box it starts to cross in one step. Empty space at
-    /// three scales: the empty groups ahead of `c`'s in the level's proximity
-    /// cloud for the ray's `heading`, a region (4×4×4 blocks) with no occupied block, and an empty
-    /// block of an occupied region, alone or with the aligned cube of 2×2×2
-    /// blocks around it, the last two read from the region's mask. An
-    /// occupied block is found from the region too, without another probe.
+    /// three scales: the empty groups ahead of `c`'s in the level's
+    /// proximity cloud for the ray's `heading`, a region (4×4×4 blocks) with
+    /// no occupied block, and an empty block of an occupied region, alone or
+    /// with the aligned cube of 2×2×2 blocks around it, the last two read
+    /// from the region's mask. An occupied block is found from the region
+    /// too, without another probe.
     #[inline(always)]
     fn enter_block(
         &self,
@@ -535,8 +537,8 @@ impl Level {
     }
 
     /// Moves from cell `c` across the empty box ahead of it to the first
-    /// cell the ray enters beyond the box. False when that lies beyond `limit` (finite) or outside the
-    /// level.
+    /// cell the ray enters beyond the box. False when that lies beyond
+    /// `limit` (finite) or outside the level.
     fn leave_empty(
         &self,
         ray: &Ray64,
