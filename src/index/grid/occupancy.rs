@@ -111,10 +111,7 @@ impl Occupancy {
         ahead
             .par_chunks_mut(count.max(1))
             .enumerate()
-            .for_each(|(h, cloud)| {
-                cloud.copy_from_slice(&occupied);
-                distances_ahead(cloud, dims, Heading(h));
-            });
+            .for_each(|(h, cloud)| distances_ahead(&occupied, cloud, dims, Heading(h)));
         Occupancy { shift, dims, ahead }
     }
 
@@ -138,8 +135,9 @@ impl Occupancy {
     }
 }
 
-/// Turns 0 (occupied) / 255 (empty) into each entry's chessboard distance to
-/// the nearest 0 ahead of it along `heading`, capped at 255, in place.
+/// From `occupied`, 0 (occupied) or 255 (empty) per group, writes into
+/// `distance` each group's chessboard distance to the nearest 0 ahead of it
+/// along `heading`, capped at 255.
 ///
 /// The distance ahead is one more than the least of the seven neighbours
 /// ahead (`g + e·h` for `e` in {0, 1}³ but 0): a nearest occupied group `g'`
@@ -148,7 +146,7 @@ impl Occupancy {
 /// can be nearer to a group ahead of it than `k − 1`, as its box ahead lies
 /// within `g`'s. So one raster pass against the heading, which finishes the
 /// entries ahead of each before it, computes it exactly. The pass runs over
-/// a copy with a border one group thick of 255s (empty, as everything beyond
+/// a copy of `occupied` with a border one group thick of 255s (empty, as everything beyond
 /// the box is), so that every row has its neighbours at fixed offsets, with
 /// no test for the box's edges.
 ///
@@ -158,7 +156,7 @@ impl Occupancy {
 /// element-wise minima of slices, which the compiler turns into vector
 /// instructions. Only the seventh, the entry ahead in the same row, is
 /// carried along it one entry at a time.
-fn distances_ahead(distance: &mut [u8], dims: [i64; 3], heading: Heading) {
+fn distances_ahead(occupied: &[u8], distance: &mut [u8], dims: [i64; 3], heading: Heading) {
     let [nx, ny, nz] = dims.map(|n| n as usize);
     let (px, py) = (nx + 2, ny + 2);
     let row_at = |y: usize, z: usize| (z * py + y) * px;
@@ -167,7 +165,7 @@ fn distances_ahead(distance: &mut [u8], dims: [i64; 3], heading: Heading) {
     let inside = |y: usize, z: usize| row_at(y, z) + 1..row_at(y, z) + 1 + nx;
     for (y, z) in rows() {
         let from = ((z - 1) * ny + y - 1) * nx;
-        padded[inside(y, z)].copy_from_slice(&distance[from..from + nx]);
+        padded[inside(y, z)].copy_from_slice(&occupied[from..from + nx]);
     }
     let [hx, hy, hz] = [0, 1, 2].map(|a| heading.sign(a));
     // Against the heading on every axis: y and z here, x in `lower_row`.
@@ -306,8 +304,10 @@ mod tests {
                 .map(at)
                 .collect();
             for h in (0..HEADINGS).map(Heading) {
-                let mut cloud = field.clone();
-                distances_ahead(&mut cloud, dims, h);
+                // 200 is no distance in boxes under 13 groups a side (nor
+                // 255): an entry the pass did not write fails.
+                let mut cloud = vec![200; groups];
+                distances_ahead(&field, &mut cloud, dims, h);
                 for n in 0..groups as i64 {
                     let g = at(n);
                     let expected = (seeds.iter())
