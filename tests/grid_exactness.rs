@@ -56,6 +56,10 @@ enum Kind {
     FarAndTiny,
     /// Spheres on the surface of a hollow ball: rays cross its empty inside.
     HollowShell,
+    /// Clumps far apart in empty space, each of its own sphere size (two
+    /// decades between them), moved by up to 10⁴: several levels, each in
+    /// clumps of its own, which the grid's gate answers for.
+    Islands,
     /// A mixed scene scaled by 10^±4 and moved by up to 10⁵.
     Rescaled,
 }
@@ -114,6 +118,20 @@ fn scene(kind: Kind, seed: u64) -> Vec<Ellipsoid<f32>> {
             for _ in 0..n {
                 let c = rng.point(1.0).normalize_or(Vec3::Y) * 5.0;
                 shapes.push(sphere(c, rng.log_range(0.05, 0.4)));
+            }
+        }
+        Kind::Islands => {
+            let shift = rng.point(1.0) * 10f32.powf(rng.range(0.0, 4.0));
+            let clumps: Vec<(Vec3, f32, f32)> = (0..3 + rng.below(4))
+                .map(|_| {
+                    let size = rng.log_range(0.003, 0.3);
+                    (rng.point(30.0) + shift, rng.range(0.5, 3.0), size)
+                })
+                .collect();
+            for _ in 0..n {
+                let (centre, reach, size) = clumps[rng.below(clumps.len())];
+                let c = centre + rng.point(1.0).normalize_or(Vec3::X) * rng.range(0.0, reach);
+                shapes.push(sphere(c, size * rng.range(0.8, 1.2)));
             }
         }
         Kind::Rescaled => {
@@ -215,7 +233,7 @@ fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
     }
 }
 
-const ALL_KINDS: [Kind; 8] = [
+const ALL_KINDS: [Kind; 9] = [
     Kind::Mixed,
     Kind::Clustered,
     Kind::HugeAndTiny,
@@ -223,8 +241,19 @@ const ALL_KINDS: [Kind; 8] = [
     Kind::Ellipsoids,
     Kind::FarAndTiny,
     Kind::HollowShell,
+    Kind::Islands,
     Kind::Rescaled,
 ];
+
+/// Clumps of their own sizes in empty space are where the gate pays: most
+/// such scenes get one, answering for two levels or more.
+#[test]
+fn islands_are_gated() {
+    let gated = (0..20)
+        .filter(|&seed| VoxelHashGrid::new(&scene(Kind::Islands, seed)).gated_levels() >= 2)
+        .count();
+    assert!(gated >= 10, "{gated} of 20 scenes gated");
+}
 
 fn kinds() -> impl Strategy<Value = Kind> {
     proptest::sample::select(ALL_KINDS.to_vec())

@@ -21,6 +21,7 @@
 
 mod build;
 mod cone;
+mod gate;
 mod light_buffer;
 mod occupancy;
 mod octant;
@@ -33,6 +34,7 @@ mod walk;
 
 use super::{Answered, Hit, LightBuffers, SphereIndex};
 use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
+use gate::Gate;
 use glam::DVec3;
 use light_buffer::{LightBuffer, NoBuffer};
 use octant::Octants;
@@ -132,6 +134,9 @@ pub struct VoxelHashGrid<R: Real> {
     short: Vec<u32>,
     /// Coarsest first: big spheres bound the search of the small ones.
     levels: Vec<Level>,
+    /// Where a single ray first meets any level's occupied space, for
+    /// scenes of several levels ([`gate`]).
+    gate: Option<Gate>,
     empty_space: EmptySpace,
     /// Candidate tests one call for many rays may make ([`TestBudget`]).
     packet_tests: u64,
@@ -213,6 +218,7 @@ impl<R: Real> VoxelHashGrid<R> {
         VoxelHashGrid {
             spheres,
             short,
+            gate: Gate::over(&levels, order.len()),
             levels,
             empty_space: EmptySpace::default(),
             packet_tests: crate::limits::PACKET_TESTS,
@@ -273,9 +279,16 @@ impl<R: Real> VoxelHashGrid<R> {
     /// the spheres included).
     pub fn bytes(&self) -> usize {
         self.levels.iter().map(Level::bytes).sum::<usize>()
+            + self.gate.as_ref().map_or(0, Gate::bytes)
             + self.spheres.capacity() * std::mem::size_of::<Candidate<R>>()
             + self.levels.capacity() * std::mem::size_of::<Level>()
             + self.short.capacity() * 4
+    }
+
+    /// How many levels a single ray walks only where the gate says their
+    /// space begins ([`gate`]): 0 without a gate.
+    pub fn gated_levels(&self) -> usize {
+        self.gate.as_ref().map_or(0, Gate::gated_levels)
     }
 
     /// How many spheres every ray tests before walking any level.

@@ -36,13 +36,13 @@ use rayon::prelude::*;
 pub const HEADINGS: usize = 8;
 /// Most groups the arrays may have (2 Mi, 16 MiB over the headings): the
 /// group side doubles until the box needs no more.
-const MAX_GROUPS: i64 = 1 << 21;
+pub(super) const MAX_GROUPS: i64 = 1 << 21;
 /// Groups the arrays may have per sphere of the level, beyond
 /// [`SMALL_SCENE_GROUPS`]: a byte per heading, 8 bytes per sphere.
 const GROUPS_PER_SPHERE: i64 = 1;
 /// Groups any level may have (32 Ki, 256 KiB over the headings), so that a
 /// scene of a few spheres far apart does not allocate megabytes.
-const SMALL_SCENE_GROUPS: i64 = 1 << 15;
+pub(super) const SMALL_SCENE_GROUPS: i64 = 1 << 15;
 
 /// Which way a ray moves along each axis, as an index of the clouds: bit
 /// `a` set where it moves up axis `a` (or not along it at all).
@@ -107,11 +107,18 @@ impl Occupancy {
             let g = unpack_key(key).map(|b| b >> coarser);
             occupied[((g[2] * dims[1] + g[1]) * dims[0] + g[0]) as usize] = 0;
         }
+        Occupancy::of_groups(shift, dims, &occupied)
+    }
+
+    /// The clouds of `dims` groups of `2^shift` cells a side, each 0 in
+    /// `occupied` (x fastest) where it may hold anything, else 255.
+    pub fn of_groups(shift: u32, dims: [i64; 3], occupied: &[u8]) -> Self {
+        let count = occupied.len();
         let mut ahead = vec![0; HEADINGS * count];
         ahead
             .par_chunks_mut(count.max(1))
             .enumerate()
-            .for_each(|(h, cloud)| distances_ahead(&occupied, cloud, dims, Heading(h)));
+            .for_each(|(h, cloud)| distances_ahead(occupied, cloud, dims, Heading(h)));
         Occupancy { shift, dims, ahead }
     }
 

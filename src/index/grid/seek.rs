@@ -4,7 +4,8 @@
 //! occupied cell's spheres to; a small mailbox spares the spheres a ray has
 //! already met in an earlier cell.
 
-use super::walk::{Ray64, Visit};
+use super::gate::Gate;
+use super::walk::{greater, Ray64, Visit};
 use super::{search_end, search_start, Candidate, Level, Tests, VoxelHashGrid};
 use crate::geometry::{Ray, Real};
 use crate::index::Hit;
@@ -93,12 +94,18 @@ impl<R: Real> VoxelHashGrid<R> {
             mailbox: Mailbox::new(),
             budget,
             slack: 0.0,
+            from: f64::NEG_INFINITY,
         };
         for &i in &self.short {
             seek.test(i);
         }
-        for level in &self.levels {
-            seek.walk(level, &wide);
+        match &self.gate {
+            None => {
+                for level in &self.levels {
+                    seek.walk(level, &wide);
+                }
+            }
+            Some(gate) => seek.walk_gated(gate, &wide),
         }
         seek.nearest.best
     }
@@ -112,7 +119,10 @@ impl<R: Real> VoxelHashGrid<R> {
             return Some(i);
         }
         let mut seek = SeekBlocker::new(self, ray, t_max, budget);
-        self.levels.iter().find_map(|level| seek.walk(level, &wide))
+        match &self.gate {
+            None => self.levels.iter().find_map(|level| seek.walk(level, &wide)),
+            Some(gate) => seek.walk_gated(gate, &wide),
+        }
     }
 }
 
@@ -128,6 +138,8 @@ struct SeekNearest<'a, R: Real, B: Tests> {
     budget: &'a mut B,
     /// The walked level's pad in t, which the walk's end keeps beyond the best t.
     slack: f64,
+    /// A t before which no level holds anything along the ray ([`super::gate`]).
+    from: f64,
 }
 
 impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
@@ -138,12 +150,43 @@ impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
             .offer(&self.grid.spheres[i as usize], self.ray, self.t_min);
     }
 
+    /// Where the search starts and ends, before any level's slack: up to
+    /// the best hit so far.
+    fn span(&self) -> (f64, f64) {
+        let best_t = self.nearest.best.map_or(self.t_max, |b| b.t);
+        (search_start(self.t_min), search_end(best_t))
+    }
+
+    /// Searches every level, those `gate` answers for from where it says
+    /// the ray first meets their space, or not at all; the others from the
+    /// start. Out of line, so that the walk of a scene without a gate costs
+    /// what it did before there was one.
+    #[inline(never)]
+    fn walk_gated(&mut self, gate: &Gate, wide: &Ray64) {
+        // Asked once, at the first level the gate answers for.
+        let mut first = None;
+        for (i, level) in self.grid.levels.iter().enumerate() {
+            self.from = f64::NEG_INFINITY;
+            if gate.gates(i) {
+                let t = *first.get_or_insert_with(|| {
+                    let slack = gate.slack / wide.length;
+                    let (start, end) = self.span();
+                    gate.first_marked(wide, start - slack, end + slack)
+                });
+                match t {
+                    Some(t) => self.from = t,
+                    None => continue,
+                }
+            }
+            self.walk(level, wide);
+        }
+    }
+
     /// Searches `level` (the ray `wide` in f64) up to the best hit so far.
     fn walk(&mut self, level: &Level, wide: &Ray64) {
         self.slack = level.slack / wide.length;
-        let best_t = self.nearest.best.map_or(self.t_max, |b| b.t);
-        let (start, end) = (search_start(self.t_min), search_end(best_t));
-        let span = (start - self.slack, end + self.slack);
+        let (start, end) = self.span();
+        let span = (greater(start, self.from) - self.slack, end + self.slack);
         level.walk(wide, span.0, span.1, self.grid.empty_space, self);
     }
 }
@@ -170,6 +213,8 @@ pub(super) struct SeekBlocker<'a, R: Real, B: Tests> {
     mailbox: Mailbox,
     budget: &'a mut B,
     blocker: Option<u32>,
+    /// A t before which no level holds anything along the ray ([`super::gate`]).
+    from: f64,
 }
 
 impl<'a, R: Real, B: Tests> SeekBlocker<'a, R, B> {
@@ -186,7 +231,28 @@ impl<'a, R: Real, B: Tests> SeekBlocker<'a, R, B> {
             mailbox: Mailbox::new(),
             budget,
             blocker: None,
+            from: f64::NEG_INFINITY,
         }
+    }
+
+    /// [`SeekBlocker::walk`] over every level, those `gate` answers for
+    /// from where it says the ray first meets their space, or not at all
+    /// (out of line, as [`SeekNearest::walk_gated`]).
+    #[inline(never)]
+    fn walk_gated(&mut self, gate: &Gate, wide: &Ray64) -> Option<u32> {
+        // Asked once, at the first level the gate answers for.
+        let mut first = None;
+        (self.grid.levels.iter().enumerate()).find_map(|(i, level)| {
+            self.from = f64::NEG_INFINITY;
+            if gate.gates(i) {
+                let t = *first.get_or_insert_with(|| {
+                    let slack = gate.slack / wide.length;
+                    gate.first_marked(wide, -slack, search_end(self.t_max) + slack)
+                });
+                self.from = t?;
+            }
+            self.walk(level, wide)
+        })
     }
 
     /// A sphere of `level` (its position in the grid's spheres) that blocks
@@ -194,7 +260,8 @@ impl<'a, R: Real, B: Tests> SeekBlocker<'a, R, B> {
     pub(super) fn walk(&mut self, level: &Level, wide: &Ray64) -> Option<u32> {
         let slack = level.slack / wide.length;
         let end = search_end(self.t_max) + slack;
-        level.walk(wide, -slack, end, self.grid.empty_space, self);
+        let start = greater(0.0, self.from) - slack;
+        level.walk(wide, start, end, self.grid.empty_space, self);
         self.blocker
     }
 }

@@ -188,6 +188,22 @@ impl BlockTable {
     pub fn bytes(&self) -> usize {
         self.regions.bytes() + self.blocks.capacity() * std::mem::size_of::<Block>()
     }
+
+    /// The cell coordinates of every occupied cell, in no particular order.
+    pub fn occupied_cells(&self) -> impl Iterator<Item = [i64; 3]> + '_ {
+        self.regions.entries().flat_map(move |(key, region)| {
+            let r = unpack_key(key);
+            set_bits(region.blocks).flat_map(move |bit| {
+                let block = self.block_in(region, bit);
+                let within = bit_cell(bit);
+                let b = [0, 1, 2].map(|a| (r[a] << BLOCK_SHIFT) + within[a]);
+                set_bits(block.occupied).map(move |cell| {
+                    let c = bit_cell(cell);
+                    [0, 1, 2].map(|a| (b[a] << BLOCK_SHIFT) + c[a])
+                })
+            })
+        })
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -253,6 +269,30 @@ impl<V: Copy + Default> GroupTable<V> {
     fn bytes(&self) -> usize {
         self.slots.len() * std::mem::size_of::<Slot<V>>()
     }
+
+    /// Every entry, in no particular order.
+    fn entries(&self) -> impl Iterator<Item = (BlockKey, V)> + '_ {
+        (self.slots.iter())
+            .filter(|slot| slot.key != EMPTY)
+            .map(|slot| (slot.key, slot.value))
+    }
+}
+
+/// The coordinates within a 4×4×4 group of the cell at `bit` ([`cell_bit`]).
+fn bit_cell(bit: u32) -> [i64; 3] {
+    let m = BLOCK_SIDE as u32 - 1;
+    [0, 1, 2].map(|a| i64::from(bit >> (a as u32 * BLOCK_SHIFT) & m))
+}
+
+/// The positions of the set bits of `mask`, lowest first.
+fn set_bits(mut mask: u64) -> impl Iterator<Item = u32> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let bit = mask.trailing_zeros();
+            mask &= mask - 1;
+            bit
+        })
+    })
 }
 
 #[cfg(test)]
@@ -294,6 +334,41 @@ mod tests {
         assert!(b.holds(7) && !b.holds(6));
         assert_eq!(b.cell_index(63), 14);
         assert_eq!(cell_bit([5, 2, 3]), 1 | 2 << 2 | 3 << 4);
+    }
+
+    /// Every cell of every block's mask, and no other, at its coordinates.
+    #[test]
+    fn occupied_cells_are_those_of_the_masks() {
+        let blocks = [
+            ([0, 0, 0], 1u64 | 1 << 63),
+            ([5, 9, 2], 1 << 21),
+            ([4, 0, 7], u64::MAX),
+        ];
+        let entries = blocks.map(|(b, occupied)| {
+            let block = Block {
+                occupied,
+                first_cell: 0,
+            };
+            (block_key(b), block)
+        });
+        let mut want: Vec<[i64; 3]> = Vec::new();
+        for (b, occupied) in blocks {
+            for x in 0..4 {
+                for y in 0..4 {
+                    for z in 0..4 {
+                        let c = [b[0] * 4 + x, b[1] * 4 + y, b[2] * 4 + z];
+                        if occupied >> cell_bit(c) & 1 == 1 {
+                            want.push(c);
+                        }
+                    }
+                }
+            }
+        }
+        let mut got: Vec<[i64; 3]> = BlockTable::new(&entries).occupied_cells().collect();
+        got.sort();
+        want.sort();
+        assert_eq!(got.len(), 2 + 1 + 64);
+        assert_eq!(got, want);
     }
 
     #[test]

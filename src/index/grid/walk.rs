@@ -29,7 +29,7 @@ use glam::DVec3;
 pub struct Ray64 {
     pub o: [f64; 3],
     pub d: [f64; 3],
-    inv: [f64; 3],
+    pub inv: [f64; 3],
     pub length: f64,
 }
 
@@ -238,7 +238,7 @@ fn pair_cube(c: [i64; 3]) -> u64 {
 /// without branches: which axis a ray steps along next is as good as
 /// random, and a mispredicted branch costs more than the selects.
 #[inline(always)]
-fn first_axis(t: &[f64; 3]) -> usize {
+pub(super) fn first_axis(t: &[f64; 3]) -> usize {
     let one_first = t[1] < t[0];
     let earlier = if one_first { t[1] } else { t[0] };
     if t[2] < earlier {
@@ -248,31 +248,40 @@ fn first_axis(t: &[f64; 3]) -> usize {
     }
 }
 
+/// The part of [t_lo, t_hi] the ray spends inside the box `lo..hi`.
+///
+/// Without branches: where d = ±0 its reciprocal is ±∞, so the slab
+/// between the box's planes gives t = ±∞ (the whole line, or none of it)
+/// and a start on a plane gives 0·∞ = NaN, which the comparisons of
+/// [`greater`] and [`lesser`] ignore: the span stays unclipped on that
+/// side, as the ray lies in the box's closed slab. Each plane is taken as
+/// near or far by the direction's sign, so a NaN never swaps them.
+#[inline(always)]
+pub(super) fn clip_to_box(
+    lo: &[f64; 3],
+    hi: &[f64; 3],
+    ray: &Ray64,
+    t_lo: f64,
+    t_hi: f64,
+) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (t_lo, t_hi);
+    for a in 0..3 {
+        let up = ray.inv[a] >= 0.0;
+        let (near, far) = if up { (lo[a], hi[a]) } else { (hi[a], lo[a]) };
+        t0 = greater(t0, (near - ray.o[a]) * ray.inv[a]);
+        t1 = lesser(t1, (far - ray.o[a]) * ray.inv[a]);
+    }
+    // t0 = +∞: parallel to a plane outside the box, which t0 ≤ t1 misses
+    // only where every other reciprocal overflowed too (t1 = +∞).
+    (t0 <= t1 && t0 < f64::INFINITY).then_some((t0, t1))
+}
+
 impl Level {
-    /// The part of [t_lo, t_hi] the ray spends inside this level's box.
-    ///
-    /// Without branches: where d = ±0 its reciprocal is ±∞, so the slab
-    /// between the box's planes gives t = ±∞ (the whole line, or none of it)
-    /// and a start on a plane gives 0·∞ = NaN, which the comparisons of
-    /// [`greater`] and [`lesser`] ignore: the span stays unclipped on that
-    /// side, as the ray lies in the box's closed slab. Each plane is taken as
-    /// near or far by the direction's sign, so a NaN never swaps them.
+    /// The part of [t_lo, t_hi] the ray spends inside this level's box
+    /// ([`clip_to_box`]).
     #[inline(always)]
     pub(super) fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
-        let (mut t0, mut t1) = (t_lo, t_hi);
-        for a in 0..3 {
-            let up = ray.inv[a] >= 0.0;
-            let (near, far) = if up {
-                (self.origin[a], self.far[a])
-            } else {
-                (self.far[a], self.origin[a])
-            };
-            t0 = greater(t0, (near - ray.o[a]) * ray.inv[a]);
-            t1 = lesser(t1, (far - ray.o[a]) * ray.inv[a]);
-        }
-        // t0 = +∞: parallel to a plane outside the box, which t0 ≤ t1 misses
-        // only where every other reciprocal overflowed too (t1 = +∞).
-        (t0 <= t1 && t0 < f64::INFINITY).then_some((t0, t1))
+        clip_to_box(&self.origin.to_array(), &self.far, ray, t_lo, t_hi)
     }
 
     /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.

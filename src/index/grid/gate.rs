@@ -1,0 +1,354 @@
+//! The gate: one coarse occupancy over every level, which a single ray
+//! asks before it walks any of them.
+//!
+//! Each level crosses empty space with its own proximity clouds
+//! ([`super::occupancy`]), so a ray through a scene of several levels crosses
+//! the same empty space once per level: where clumps stand alone in empty
+//! space, a ray that passes between them costs several times what one walk
+//! would. The gate is a lattice of cubes over the levels' boxes, a cube
+//! marked where any level's occupied group meets it, with proximity clouds
+//! of its own. One walk of it, a few leaps, finds where the ray first enters
+//! a marked cube; the levels are then walked from there, or not at all.
+//!
+//! # Why the levels miss nothing
+//! Every sphere a level holds lies in its occupied cells, every occupied
+//! cell in an occupied group, and every occupied group within marked cubes
+//! (a group's box marks every cube it meets, in exact binary arithmetic:
+//! both lattices are anchored at multiples of powers of two). The gate walk
+//! leaps only over boxes of unmarked cubes, whatever rounding does to its
+//! choice of cube (the argument of [`super::walk`]'s leaps), and the t it
+//! returns is the t at which the ray leaves those boxes, lowered by
+//! [`Gate::margin`], a bound on that t's rounding. So the levels' walks,
+//! started there less their own slack, visit every cell they would have
+//! visited from the start, as far as any hit.
+
+use super::occupancy::{Heading, Occupancy, MAX_GROUPS, SMALL_SCENE_GROUPS};
+use super::walk::{first_axis, floor_to_int, greater, Ray64};
+use super::Level;
+
+/// The gate walk's t rounds by a few units in the last place of the
+/// magnitudes it is computed from; the margin takes 2^-44 of them.
+const MARGIN: f64 = 1.0 / (1u64 << 44) as f64;
+/// A level whose occupied cells meet more than this share of the cubes is
+/// walked without the gate: where it fills space (dust through the whole
+/// view), a ray meets a marked cube at once and the gate only costs.
+const MOST_MARKED: f64 = 1.0 / 16.0;
+
+/// Cubes marked over the levels' boxes, and how far unmarked space reaches
+/// ahead of each.
+pub struct Gate {
+    /// The low corner of cube (0, 0, 0), a multiple of `side`.
+    origin: [f64; 3],
+    /// The high corner of the lattice.
+    far: [f64; 3],
+    /// Cube side, a power of two.
+    side: f64,
+    per_side: f64,
+    dims: [i64; 3],
+    /// A cube's clouds: groups of one cube (`shift` 0).
+    clouds: Occupancy,
+    /// The largest magnitude of the lattice's coordinates.
+    extent: f64,
+    /// The gated levels' largest slack ([`Level::slack`]): the gate is
+    /// asked about the span the widest of their walks would search.
+    pub slack: f64,
+    /// Bit i set where the gate answers for level i.
+    gated: u64,
+}
+
+/// The cubes: where cube (0, 0, 0) starts, their side, how many a side.
+#[derive(Clone, Copy, Debug)]
+struct Lattice {
+    /// A multiple of `side`.
+    origin: [f64; 3],
+    /// A power of two.
+    side: f64,
+    dims: [i64; 3],
+}
+
+impl Lattice {
+    /// Cubes over the levels' boxes, as fine as their finest cell where no
+    /// more than `budget` of them cover the boxes, else coarser.
+    fn over(levels: &[Level], budget: i64) -> Self {
+        let lo = [0, 1, 2].map(|a| levels.iter().map(|l| l.origin[a]).fold(f64::MAX, f64::min));
+        let hi = [0, 1, 2].map(|a| levels.iter().map(|l| l.far[a]).fold(f64::MIN, f64::max));
+        let at = |side: f64| {
+            let origin = lo.map(|x| (x / side).floor() * side);
+            let dims = [0, 1, 2].map(|a| ((hi[a] - origin[a]) / side).floor() as i64 + 1);
+            Lattice { origin, side, dims }
+        };
+        let mut side = levels.iter().map(|l| l.cell).fold(f64::MAX, f64::min);
+        while at(side).count() > budget as usize {
+            side *= 2.0;
+        }
+        at(side)
+    }
+
+    fn count(&self) -> usize {
+        self.dims.iter().product::<i64>() as usize
+    }
+
+    /// Sets `meets` (one per cube, x fastest) where one of `level`'s
+    /// occupied cells meets the cube.
+    fn mark(&self, level: &Level, meets: &mut [bool]) {
+        let (dims, per_side) = (self.dims, 1.0 / self.side);
+        for c in level.table.occupied_cells() {
+            // The cubes the cell's box [lo, lo + cell] meets: ⌊lo⌋ to ⌈hi⌉ − 1,
+            // in cubes. Both lattices are anchored at multiples of powers of
+            // two, so a cell no wider than a cube lies in one.
+            let range = |a: usize| {
+                let lo = level.origin[a] + c[a] as f64 * level.cell;
+                let first = ((lo - self.origin[a]) * per_side).floor() as i64;
+                let last = ((lo + level.cell - self.origin[a]) * per_side).ceil() as i64 - 1;
+                (first.clamp(0, dims[a] - 1), last.clamp(0, dims[a] - 1))
+            };
+            let [(x0, x1), (y0, y1), (z0, z1)] = [range(0), range(1), range(2)];
+            for z in z0..=z1 {
+                for y in y0..=y1 {
+                    let row = ((z * dims[1] + y) * dims[0]) as usize;
+                    meets[row + x0 as usize..=row + x1 as usize].fill(true);
+                }
+            }
+        }
+    }
+}
+
+impl Gate {
+    /// The gate over those of `levels` (holding `spheres` spheres) whose
+    /// occupied cells meet at most [`MOST_MARKED`] of its cubes; None where
+    /// fewer than two do, whose own clouds already answer for the space
+    /// around them.
+    pub fn over(levels: &[Level], spheres: usize) -> Option<Gate> {
+        if levels.len() < 2 {
+            return None;
+        }
+        let lattice = Lattice::over(
+            levels,
+            (spheres as i64).clamp(SMALL_SCENE_GROUPS, MAX_GROUPS),
+        );
+        let count = lattice.count();
+        let mut marked = vec![false; count];
+        let (mut gated, mut slack) = (0u64, 0.0f64);
+        let mut meets = vec![false; count];
+        for (i, level) in levels.iter().enumerate().take(u64::BITS as usize) {
+            meets.fill(false);
+            lattice.mark(level, &mut meets);
+            if meets.iter().filter(|&&m| m).count() as f64 > MOST_MARKED * count as f64 {
+                continue;
+            }
+            gated |= 1 << i;
+            slack = slack.max(level.slack);
+            for (m, _) in marked.iter_mut().zip(&meets).filter(|(_, &o)| o) {
+                *m = true;
+            }
+        }
+        (gated.count_ones() >= 2).then(|| Gate::new(lattice, &marked, gated, slack))
+    }
+
+    /// The gate of `marked` cubes (x fastest) of `lattice`, answering for
+    /// the levels of the bits of `gated`, whose largest slack is `slack`.
+    fn new(lattice: Lattice, marked: &[bool], gated: u64, slack: f64) -> Self {
+        let Lattice { origin, side, dims } = lattice;
+        let far = [0, 1, 2].map(|a| origin[a] + dims[a] as f64 * side);
+        let extent = (origin.iter().chain(&far)).fold(0.0f64, |m, x| m.max(x.abs()));
+        let occupied: Vec<u8> = marked
+            .iter()
+            .map(|&m| if m { 0 } else { u8::MAX })
+            .collect();
+        Gate {
+            origin,
+            far,
+            side,
+            per_side: 1.0 / side,
+            dims,
+            clouds: Occupancy::of_groups(0, dims, &occupied),
+            extent,
+            slack,
+            gated,
+        }
+    }
+
+    /// How many levels the gate answers for.
+    pub fn gated_levels(&self) -> usize {
+        self.gated.count_ones() as usize
+    }
+
+    /// Whether the gate answers for level `i`'s space.
+    #[inline(always)]
+    pub fn gates(&self, i: usize) -> bool {
+        i < u64::BITS as usize && self.gated >> i & 1 == 1
+    }
+
+    pub fn bytes(&self) -> usize {
+        self.clouds.bytes()
+    }
+
+    /// A t at or before the first at which the ray, within [t_lo, t_hi],
+    /// enters a marked cube; None if it enters none there.
+    ///
+    /// The per-axis arrays are written out rather than built with
+    /// `[0, 1, 2].map(..)`, which is not always inlined here.
+    #[inline(always)]
+    pub fn first_marked(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<f64> {
+        let margin = self.margin(ray);
+        if !margin.is_finite() {
+            return Some(t_lo);
+        }
+        let (t0, t1) = self.clip(ray, t_lo, t_hi)?;
+        let step_of = |d: f64| (d > 0.0) as i64 - (d < 0.0) as i64;
+        let step = [step_of(ray.d[0]), step_of(ray.d[1]), step_of(ray.d[2])];
+        let heading = Heading::of(step);
+        // The t at which the ray leaves cube index i on axis a (+∞ if never).
+        let crossing = |a: usize, i: i64| {
+            if step[a] == 0 {
+                return f64::INFINITY;
+            }
+            let plane = self.origin[a] + (i + i64::from(step[a] > 0)) as f64 * self.side;
+            (plane - ray.o[a]) * ray.inv[a]
+        };
+        // The cube holding the ray's point at t on axis a, within [lo, hi].
+        let cube_at = |a: usize, t: f64, lo: i64, hi: i64| {
+            let p = ray.o[a] + t * ray.d[a];
+            floor_to_int((p - self.origin[a]) * self.per_side).clamp(lo, hi)
+        };
+        // Looked up a margin early, so that a start on a cube's plane
+        // takes the cube before it.
+        let start = t0 - margin;
+        let mut c = [
+            cube_at(0, start, 0, self.dims[0] - 1),
+            cube_at(1, start, 0, self.dims[1] - 1),
+            cube_at(2, start, 0, self.dims[2] - 1),
+        ];
+        let mut t_in = t0;
+        loop {
+            let distance = self.clouds.distance(c, heading);
+            if distance == 0 {
+                return Some(t_in - margin);
+            }
+            // Leap across the empty box of `distance` cubes a side ahead.
+            let r = i64::from(distance) - 1;
+            let last = [c[0] + step[0] * r, c[1] + step[1] * r, c[2] + step[2] * r];
+            let exits = [
+                crossing(0, last[0]),
+                crossing(1, last[1]),
+                crossing(2, last[2]),
+            ];
+            let a = first_axis(&exits);
+            let t_exit = exits[a];
+            // Finite: the ray moves along some axis, whose crossing is least.
+            if t_exit > t1 {
+                return None;
+            }
+            for k in 0..3 {
+                c[k] = if k == a {
+                    last[k] + step[k]
+                } else {
+                    cube_at(k, t_exit, c[k].min(last[k]), c[k].max(last[k]))
+                };
+                if c[k] < 0 || c[k] >= self.dims[k] {
+                    return None;
+                }
+            }
+            t_in = t_exit;
+        }
+    }
+
+    /// A bound on the rounding of the gate walk's t, with room: each t is a
+    /// plane's `(origin − o)·(1/d) + i·(side/d)`, a few roundings of
+    /// magnitudes up to the lattice's coordinates and the ray's origin over
+    /// the direction, and the start is looked up at a point a few roundings
+    /// from the one at that t. Infinite (no gating) for a direction whose
+    /// reciprocal overflows.
+    #[inline(always)]
+    fn margin(&self, ray: &Ray64) -> f64 {
+        let mut reach = self.extent;
+        let mut most = 1.0 / ray.length;
+        for a in 0..3 {
+            reach += ray.o[a].abs();
+            if ray.d[a] != 0.0 {
+                most = greater(most, ray.inv[a].abs());
+            }
+        }
+        MARGIN * reach * most
+    }
+
+    /// The part of [t_lo, t_hi] the ray spends in the lattice's box.
+    #[inline(always)]
+    fn clip(&self, ray: &Ray64, t_lo: f64, t_hi: f64) -> Option<(f64, f64)> {
+        super::walk::clip_to_box(&self.origin, &self.far, ray, t_lo, t_hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+    use glam::DVec3;
+
+    /// The first t in [t_lo, t_hi] at which the ray is in a marked cube, by
+    /// clipping it to every marked cube's box.
+    fn first_by_brute_force(
+        gate: &Gate,
+        marked: &[bool],
+        ray: &Ray64,
+        t_lo: f64,
+        t_hi: f64,
+    ) -> Option<f64> {
+        let [nx, ny, _] = gate.dims;
+        (marked.iter().enumerate())
+            .filter(|(_, &m)| m)
+            .filter_map(|(i, _)| {
+                let i = i as i64;
+                let c = [i % nx, i / nx % ny, i / (nx * ny)];
+                let lo = [0, 1, 2].map(|a| gate.origin[a] + c[a] as f64 * gate.side);
+                let hi = lo.map(|x| x + gate.side);
+                super::super::walk::clip_to_box(&lo, &hi, ray, t_lo, t_hi).map(|(t0, _)| t0)
+            })
+            .reduce(f64::min)
+    }
+
+    /// At random scales and places, the gate's t comes no later than the
+    /// first marked cube's, and it says "none" for most rays that meet none.
+    #[test]
+    fn the_first_marked_cube_is_never_passed() {
+        let mut rng = Rng::new(11);
+        let (mut clear, mut said_clear) = (0, 0);
+        for case in 0..300 {
+            let side = 2f64.powi((rng.next_u64() % 40) as i32 - 20);
+            let dims = [0; 3].map(|_| 1 + (rng.next_u64() % 10) as i64);
+            let shift = 10f64.powi((rng.next_u64() % 5) as i32) * (rng.unit() - 0.5);
+            let origin = [0; 3].map(|_| ((shift + rng.unit()) / side).floor() * side);
+            let lattice = Lattice { origin, side, dims };
+            let density = [0.002, 0.02, 0.1, 0.3][case % 4];
+            let marked: Vec<bool> = (0..lattice.count()).map(|_| rng.unit() < density).collect();
+            let gate = Gate::new(lattice, &marked, 0b11, 0.0);
+            let size = dims.map(|d| d as f64 * side);
+            for _ in 0..50 {
+                let place = |rng: &mut Rng| {
+                    DVec3::from_array(
+                        [0, 1, 2].map(|a| origin[a] + (rng.unit() * 1.6 - 0.3) * size[a]),
+                    )
+                };
+                let o = place(&mut rng);
+                let mut d = place(&mut rng) - o;
+                if rng.unit() < 0.2 {
+                    d[(rng.next_u64() % 3) as usize] = 0.0;
+                }
+                let Some(ray) = Ray64::from_f64(o, d) else {
+                    continue;
+                };
+                let (t_lo, t_hi) = (rng.unit() * 0.5 - 0.25, [1.0, 3.0, f64::INFINITY][case % 3]);
+                let want = first_by_brute_force(&gate, &marked, &ray, t_lo, t_hi);
+                let got = gate.first_marked(&ray, t_lo, t_hi);
+                match want {
+                    Some(t) => assert!(got.is_some_and(|g| g <= t), "{got:?} after {t}"),
+                    None => {
+                        clear += 1;
+                        said_clear += usize::from(got.is_none());
+                    }
+                }
+            }
+        }
+        assert!(said_clear * 10 >= clear * 9, "{said_clear} of {clear}");
+    }
+}
