@@ -1,26 +1,27 @@
-//! The gate: one coarse occupancy over every level, which a single ray
-//! asks before it walks any of them.
+//! The gate: one coarse occupancy over the levels, which a single ray asks
+//! before it walks them.
 //!
 //! Each level crosses empty space with its own proximity clouds
 //! ([`super::occupancy`]), so a ray through a scene of several levels crosses
 //! the same empty space once per level: where clumps stand alone in empty
 //! space, a ray that passes between them costs several times what one walk
 //! would. The gate is a lattice of cubes over the levels' boxes, a cube
-//! marked where any level's occupied group meets it, with proximity clouds
-//! of its own. One walk of it, a few leaps, finds where the ray first enters
-//! a marked cube; the levels are then walked from there, or not at all.
+//! marked where an occupied cell of a level it answers for meets it, with
+//! proximity clouds per heading of its own. One walk of it, a few leaps,
+//! finds where the ray first enters a marked cube; those levels are then
+//! walked from there, or not at all. A level whose cells fill space (dust
+//! through the whole view) is left to its own walk ([`MOST_MARKED`]).
 //!
 //! # Why the levels miss nothing
-//! Every sphere a level holds lies in its occupied cells, every occupied
-//! cell in an occupied group, and every occupied group within marked cubes
-//! (a group's box marks every cube it meets, in exact binary arithmetic:
-//! both lattices are anchored at multiples of powers of two). The gate walk
-//! leaps only over boxes of unmarked cubes, whatever rounding does to its
-//! choice of cube (the argument of [`super::walk`]'s leaps), and the t it
-//! returns is the t at which the ray leaves those boxes, lowered by
-//! [`Gate::margin`], a bound on that t's rounding. So the levels' walks,
-//! started there less their own slack, visit every cell they would have
-//! visited from the start, as far as any hit.
+//! Every sphere a level holds lies in its occupied cells, and every occupied
+//! cell within marked cubes (a cell's box marks every cube it meets, in exact
+//! binary arithmetic: both lattices are anchored at multiples of powers of
+//! two). The gate walk leaps only over boxes of unmarked cubes, whatever
+//! rounding does to its choice of cube (the argument of [`super::walk`]'s
+//! leaps), and the t it returns is the t at which the ray leaves those boxes,
+//! lowered by [`Gate::margin`], a bound on that t's rounding. So the levels'
+//! walks, started there less their own slack, visit every cell they would
+//! have visited from the start, as far as any hit.
 
 use super::occupancy::{Heading, Occupancy, MAX_GROUPS, SMALL_SCENE_GROUPS};
 use super::walk::{first_axis, floor_to_int, greater, Ray64};

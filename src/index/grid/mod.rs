@@ -8,7 +8,9 @@
 //! each id with the octants of its cell its sphere overlaps ([`octant`]).
 //! A ray walks each level with Amanatides & Woo's 3D-DDA ([`walk`]),
 //! coarsest level first, jumps over empty blocks in one step, and in a cell
-//! of several spheres tests only those in the octants it crosses. Eye rays
+//! of several spheres tests only those in the octants it crosses. On a scene
+//! of several levels in clumps, a single ray first asks the [`gate`] where
+//! their space begins along it, and walks them from there, or not at all. Eye rays
 //! of a tile ([`packet`]) and shadow rays from a tile toward one light
 //! ([`shadow`]) walk each level together, slab by slab ([`slab`]).
 //!
