@@ -90,27 +90,53 @@ impl Lattice {
     }
 
     /// Sets `meets` (one per cube, x fastest) where one of `level`'s
-    /// occupied cells meets the cube.
-    fn mark(&self, level: &Level, meets: &mut [bool]) {
-        let (dims, per_side) = (self.dims, 1.0 / self.side);
+    /// occupied cells meets the cube, and returns how many cubes it set;
+    /// None, leaving off, once that passes `most`.
+    ///
+    /// Both lattices lie at multiples of powers of two, the cubes' origin a
+    /// multiple of the cell where the cell is no wider than a cube, the
+    /// level's a multiple of the cube where it is wider: so a cell's cube is
+    /// its index shifted down (a cell lies in one cube), or a wide cell's
+    /// cubes its index shifted up, in integers.
+    fn mark(&self, level: &Level, meets: &mut [bool], most: usize) -> Option<usize> {
+        let dims = self.dims;
+        let fine = level.cell <= self.side;
+        let unit = if fine { level.cell } else { self.side };
+        let shift = (self.side / level.cell).log2().abs() as u32;
+        let offset = [0, 1, 2].map(|a| {
+            let cells = (level.origin[a] - self.origin[a]) / unit;
+            debug_assert_eq!(cells, cells.trunc(), "lattices not aligned");
+            cells as i64
+        });
+        let mut set = 0;
         for c in level.table.occupied_cells() {
-            // The cubes the cell's box [lo, lo + cell] meets: ⌊lo⌋ to ⌈hi⌉ − 1,
-            // in cubes. Both lattices are anchored at multiples of powers of
-            // two, so a cell no wider than a cube lies in one.
+            // `offset` counts cells where they are no wider than a cube,
+            // else cubes.
             let range = |a: usize| {
-                let lo = level.origin[a] + c[a] as f64 * level.cell;
-                let first = ((lo - self.origin[a]) * per_side).floor() as i64;
-                let last = ((lo + level.cell - self.origin[a]) * per_side).ceil() as i64 - 1;
-                (first.clamp(0, dims[a] - 1), last.clamp(0, dims[a] - 1))
+                let (first, last) = if fine {
+                    let cube = (offset[a] + c[a]) >> shift;
+                    (cube, cube)
+                } else {
+                    let first = offset[a] + (c[a] << shift);
+                    (first, first + (1 << shift) - 1)
+                };
+                (first.min(dims[a] - 1), last.min(dims[a] - 1))
             };
             let [(x0, x1), (y0, y1), (z0, z1)] = [range(0), range(1), range(2)];
             for z in z0..=z1 {
                 for y in y0..=y1 {
                     let row = ((z * dims[1] + y) * dims[0]) as usize;
-                    meets[row + x0 as usize..=row + x1 as usize].fill(true);
+                    for m in &mut meets[row + x0 as usize..=row + x1 as usize] {
+                        set += usize::from(!*m);
+                        *m = true;
+                    }
                 }
             }
+            if set > most {
+                return None;
+            }
         }
+        Some(set)
     }
 }
 
@@ -133,8 +159,8 @@ impl Gate {
         let mut meets = vec![false; count];
         for (i, level) in levels.iter().enumerate().take(u64::BITS as usize) {
             meets.fill(false);
-            lattice.mark(level, &mut meets);
-            if meets.iter().filter(|&&m| m).count() as f64 > MOST_MARKED * count as f64 {
+            let most = (MOST_MARKED * count as f64) as usize;
+            if lattice.mark(level, &mut meets, most).is_none() {
                 continue;
             }
             gated |= 1 << i;
