@@ -255,6 +255,23 @@ fn islands_are_gated() {
     assert!(gated >= 10, "{gated} of 20 scenes gated");
 }
 
+/// Tiny spheres at the origin and others 10⁹ away: two levels whose cells
+/// differ by 2^19 and lie 2^26 of the finest apart, both gated, the gate's
+/// cubes far coarser than either (its marking shifts by some 26 bits), and
+/// the answers brute force's.
+#[test]
+fn levels_far_apart_at_far_different_scales_are_gated_exactly() {
+    let mut rng = Rng::new(5);
+    let mut shapes = Vec::new();
+    for _ in 0..100 {
+        shapes.push(Ellipsoid::new(rng.point(1e-13), Vec3::splat(1e-15)));
+        let far = Vec3::new(1e9, 0.0, 0.0) + rng.point(2000.0);
+        shapes.push(Ellipsoid::new(far, Vec3::splat(rng.range(50.0, 100.0))));
+    }
+    assert_eq!(VoxelHashGrid::new(&shapes).gated_levels(), 2);
+    check(&shapes, 5, 300);
+}
+
 fn kinds() -> impl Strategy<Value = Kind> {
     proptest::sample::select(ALL_KINDS.to_vec())
 }

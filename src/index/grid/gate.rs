@@ -101,24 +101,23 @@ impl Lattice {
     fn mark(&self, level: &Level, meets: &mut [bool], most: usize) -> Option<usize> {
         let dims = self.dims;
         let fine = level.cell <= self.side;
-        let unit = if fine { level.cell } else { self.side };
         let shift = (self.side / level.cell).log2().abs() as u32;
-        let offset = [0, 1, 2].map(|a| {
-            let cells = (level.origin[a] - self.origin[a]) / unit;
-            debug_assert_eq!(cells, cells.trunc(), "lattices not aligned");
-            cells as i64
-        });
+        // `offset` counts cells where they are no wider than a cube, else
+        // cubes; `span` is how many cubes a wide cell spans a side.
+        let offset = self.offset(level)?;
+        let span = 1i64
+            .checked_shl(shift)
+            .filter(|&s| s > 0)
+            .unwrap_or(i64::MAX);
         let mut set = 0;
         for c in level.table.occupied_cells() {
-            // `offset` counts cells where they are no wider than a cube,
-            // else cubes.
             let range = |a: usize| {
                 let (first, last) = if fine {
-                    let cube = (offset[a] + c[a]) >> shift;
+                    let cube = (offset[a] + c[a]).checked_shr(shift).unwrap_or(0);
                     (cube, cube)
                 } else {
-                    let first = offset[a] + (c[a] << shift);
-                    (first, first + (1 << shift) - 1)
+                    let first = offset[a].saturating_add(c[a].saturating_mul(span));
+                    (first, first.saturating_add(span - 1))
                 };
                 (first.min(dims[a] - 1), last.min(dims[a] - 1))
             };
@@ -137,6 +136,21 @@ impl Lattice {
             }
         }
         Some(set)
+    }
+
+    /// Where `level`'s cell (0, 0, 0) lies in the lattice, in cells where
+    /// they are no wider than a cube, else in cubes: an integer, as both
+    /// origins lie at multiples of that unit. None where it is not one that
+    /// an `i64` holds with room (origins some 2^62 units apart), which
+    /// leaves the scene without a gate.
+    fn offset(&self, level: &Level) -> Option<[i64; 3]> {
+        let unit = level.cell.min(self.side);
+        let offsets = [0, 1, 2].map(|a| (level.origin[a] - self.origin[a]) / unit);
+        let exact = |x: f64| x == x.trunc() && (0.0..(1u64 << 62) as f64).contains(&x);
+        offsets
+            .iter()
+            .all(|&x| exact(x))
+            .then(|| offsets.map(|x| x as i64))
     }
 }
 
@@ -158,6 +172,7 @@ impl Gate {
         let (mut gated, mut slack) = (0u64, 0.0f64);
         let mut meets = vec![false; count];
         for (i, level) in levels.iter().enumerate().take(u64::BITS as usize) {
+            lattice.offset(level)?;
             meets.fill(false);
             let most = (MOST_MARKED * count as f64) as usize;
             if lattice.mark(level, &mut meets, most).is_none() {
