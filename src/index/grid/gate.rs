@@ -98,13 +98,19 @@ impl Lattice {
     /// level's a multiple of the cube where it is wider: so a cell's cube is
     /// its index shifted down (a cell lies in one cube), or a wide cell's
     /// cubes its index shifted up, in integers.
-    fn mark(&self, level: &Level, meets: &mut [bool], most: usize) -> Option<usize> {
+    fn mark(
+        &self,
+        level: &Level,
+        offset: [i64; 3],
+        meets: &mut [bool],
+        most: usize,
+    ) -> Option<usize> {
         let dims = self.dims;
         let fine = level.cell <= self.side;
         let shift = (self.side / level.cell).log2().abs() as u32;
-        // `offset` counts cells where they are no wider than a cube, else
-        // cubes; `span` is how many cubes a wide cell spans a side.
-        let offset = self.offset(level)?;
+        // `offset` ([`Lattice::offset`]) counts cells where they are no
+        // wider than a cube, else cubes; `span` is how many cubes a wide
+        // cell spans a side.
         let span = 1i64
             .checked_shl(shift)
             .filter(|&s| s > 0)
@@ -172,10 +178,10 @@ impl Gate {
         let (mut gated, mut slack) = (0u64, 0.0f64);
         let mut meets = vec![false; count];
         for (i, level) in levels.iter().enumerate().take(u64::BITS as usize) {
-            lattice.offset(level)?;
+            let offset = lattice.offset(level)?;
             meets.fill(false);
             let most = (MOST_MARKED * count as f64) as usize;
-            if lattice.mark(level, &mut meets, most).is_none() {
+            if lattice.mark(level, offset, &mut meets, most).is_none() {
                 continue;
             }
             gated |= 1 << i;
