@@ -24,6 +24,7 @@
 //! have visited from the start, as far as any hit.
 
 use super::occupancy::{Heading, Occupancy, MAX_GROUPS, SMALL_SCENE_GROUPS};
+use super::slab::{Packet, PlaneCells, Rect};
 use super::walk::{first_axis, floor_to_int, greater, Ray64};
 use super::Level;
 
@@ -34,6 +35,13 @@ const MARGIN: f64 = 1.0 / (1u64 << 44) as f64;
 /// walked without the gate: where it fills space (dust through the whole
 /// view), a ray meets a marked cube at once and the gate only costs.
 const MOST_MARKED: f64 = 1.0 / 16.0;
+
+/// Most layers of cubes a packet's rays may cross for the gate to be asked
+/// about them: a lattice long on one axis is left to the levels' walks.
+const PACKET_LAYERS: i64 = 512;
+/// Most cubes one layer's rectangle of a packet may span (widened by a cube
+/// each way) for the gate to look at each.
+const PACKET_CUBES: i64 = 64;
 
 /// Cubes marked over the levels' boxes, and how far unmarked space reaches
 /// ahead of each.
@@ -301,6 +309,83 @@ impl Gate {
         }
     }
 
+    /// The planes across `packet`'s axis (coordinates times its step, the
+    /// lesser first) between which its rays, searching from `t_min`, meet
+    /// marked cubes; None where none of them meets one. Eye packets only:
+    /// rays from one point (anything else is answered with every plane).
+    ///
+    /// The packet crosses the lattice layer by layer along its axis, as a
+    /// packet crosses a level's slabs ([`super::slab`]): each layer's
+    /// rectangle of cubes holds every ray's path through it, and is widened
+    /// by a cube each way against the rounding of its corners (at most
+    /// [`MARGIN`] of the magnitudes involved, far below a cube where the
+    /// gate answers at all). A hit of a gated level lies in a marked cube
+    /// (module docs), so in a marked layer of the ray; the planes returned
+    /// are those layers' outer planes, widened by the levels' slack and a
+    /// cube.
+    #[inline(never)]
+    pub fn packet_along(&self, packet: &Packet, t_min: f64) -> Option<[f64; 2]> {
+        let everywhere = Some([f64::NEG_INFINITY, f64::INFINITY]);
+        let (k, step) = (packet.axis(), packet.step());
+        let range = packet.slope_range(u64::MAX);
+        let magnitude = self.extent + packet.origin.iter().map(|x| x.abs()).sum::<f64>();
+        let rounding = MARGIN * magnitude * (1.0 + range.steepest());
+        let ahead_only = t_min >= 0.0 && packet.spread() == 0.0;
+        if !(ahead_only && rounding < self.side / 4.0) {
+            return everywhere;
+        }
+        // The layers from the origin's (less one) on, in the rays' direction.
+        let top = self.dims[k] - 1;
+        let origin_layer = floor_to_int((packet.origin[k] - self.origin[k]) * self.per_side)
+            .clamp(-1, top + 1)
+            - step;
+        let (first, last) = if step > 0 {
+            (origin_layer.max(0), top)
+        } else {
+            (origin_layer.min(top), 0)
+        };
+        if (last - first) * step < 0 {
+            return None;
+        }
+        if (last - first).abs() >= PACKET_LAYERS {
+            return everywhere;
+        }
+        let range = range.widened(rounding);
+        let cubes = PlaneCells::of_lattice(&self.origin, self.per_side, self.dims, packet);
+        let plane = |i: i64| self.origin[k] + i as f64 * self.side - packet.origin[k];
+        let [u, v] = [(k + 1) % 3, (k + 2) % 3];
+        let (mut first_marked, mut last_marked) = (None, None);
+        let mut s = first;
+        while (last - s) * step >= 0 {
+            let rect = Rect::between(&cubes.at(&range, plane(s)), &cubes.at(&range, plane(s + 1)));
+            let (lo, hi) = (rect.lo, rect.hi);
+            if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
+                return everywhere;
+            }
+            let mut c = [s; 3];
+            let marked = (lo[0].max(0)..=hi[0].min(self.dims[u] - 1)).any(|cu| {
+                (lo[1].max(0)..=hi[1].min(self.dims[v] - 1)).any(|cv| {
+                    (c[u], c[v]) = (cu, cv);
+                    self.clouds.distance(c, Heading::of([1; 3])) == 0
+                })
+            });
+            if marked {
+                first_marked.get_or_insert(s);
+                last_marked = Some(s);
+            }
+            s += step;
+        }
+        let (first_marked, last_marked) = (first_marked?, last_marked?);
+        // Layer s lies between planes s and s + 1; times the step, in order.
+        let ends = |s: i64| {
+            let (a, b) = (plane(s) + packet.origin[k], plane(s + 1) + packet.origin[k]);
+            let (a, b) = (a * step as f64, b * step as f64);
+            [a.min(b), a.max(b)]
+        };
+        let widen = self.slack + self.side;
+        Some([ends(first_marked)[0] - widen, ends(last_marked)[1] + widen])
+    }
+
     /// A bound on the rounding of the gate walk's t, with room: each t is a
     /// plane's `(origin − o)·(1/d) + i·(side/d)`, a few roundings of
     /// magnitudes up to the lattice's coordinates and the ray's origin over
@@ -398,5 +483,84 @@ mod tests {
             }
         }
         assert!(said_clear * 10 >= clear * 9, "{said_clear} of {clear}");
+    }
+
+    /// The planes along the packet's axis (times its step) where `ray`
+    /// enters and leaves each marked cube within [t_lo, ∞).
+    fn marked_planes(
+        gate: &Gate,
+        marked: &[bool],
+        ray: &Ray64,
+        axis: usize,
+        step: f64,
+    ) -> Vec<f64> {
+        let [nx, ny, _] = gate.dims;
+        (marked.iter().enumerate())
+            .filter(|(_, &m)| m)
+            .filter_map(|(i, _)| {
+                let i = i as i64;
+                let c = [i % nx, i / nx % ny, i / (nx * ny)];
+                let lo = [0, 1, 2].map(|a| gate.origin[a] + c[a] as f64 * gate.side);
+                let hi = lo.map(|x| x + gate.side);
+                super::super::walk::clip_to_box(&lo, &hi, ray, 0.0, f64::INFINITY)
+            })
+            .flat_map(|(t0, t1)| [t0, t1].map(|t| (ray.o[axis] + t * ray.d[axis]) * step))
+            .collect()
+    }
+
+    /// At random scales and places, every point at which a packet's ray is
+    /// in a marked cube lies between the planes the gate gives the packet,
+    /// and it says "nowhere" for most packets that meet none.
+    #[test]
+    fn a_packets_marked_cubes_lie_between_its_planes() {
+        let mut rng = Rng::new(12);
+        let (mut clear, mut said_clear, mut asked) = (0, 0, 0);
+        for case in 0..300 {
+            let side = 2f64.powi((rng.next_u64() % 40) as i32 - 20);
+            let dims = [0; 3].map(|_| 1 + (rng.next_u64() % 12) as i64);
+            let shift = 10f64.powi((rng.next_u64() % 5) as i32) * (rng.unit() - 0.5);
+            let origin = [0; 3].map(|_| ((shift + rng.unit()) / side).floor() * side);
+            let lattice = Lattice { origin, side, dims };
+            let density = [0.002, 0.02, 0.1][case % 3];
+            let marked: Vec<bool> = (0..lattice.count()).map(|_| rng.unit() < density).collect();
+            let gate = Gate::new(lattice, &marked, 0b11, side * rng.unit());
+            let size = dims.map(|d| d as f64 * side);
+            let place = |rng: &mut Rng, a: usize, wide: f64| {
+                origin[a] + (rng.unit() * (1.0 + 2.0 * wide) - wide) * size[a]
+            };
+            for _ in 0..20 {
+                let eye = DVec3::from_array([0, 1, 2].map(|a| place(&mut rng, a, 1.0)));
+                let aim = DVec3::from_array([0, 1, 2].map(|a| place(&mut rng, a, 0.2)));
+                // A tile of rays fanning out from the eye, a random spread.
+                let fan = (aim - eye).length() * [1e-3, 0.05, 0.3][case % 3];
+                Packet::with_spare(|packet| {
+                    for ray in packet.rays.iter_mut() {
+                        let jitter = DVec3::from_array([0; 3].map(|_| rng.unit() - 0.5)) * fan;
+                        *ray = Ray64::from_f64(eye, aim + jitter - eye).expect("a direction");
+                    }
+                    if !packet.aim(eye.to_array()) {
+                        return;
+                    }
+                    let (axis, step) = (packet.axis(), packet.step() as f64);
+                    let planes: Vec<f64> = (packet.rays.iter())
+                        .flat_map(|ray| marked_planes(&gate, &marked, ray, axis, step))
+                        .collect();
+                    asked += 1;
+                    match gate.packet_along(packet, 0.0) {
+                        Some([lo, hi]) => assert!(
+                            planes.iter().all(|&p| lo <= p && p <= hi),
+                            "{planes:?} outside {lo}..{hi}"
+                        ),
+                        None => assert!(planes.is_empty(), "{planes:?} said clear"),
+                    }
+                    if planes.is_empty() {
+                        clear += 1;
+                        said_clear += usize::from(gate.packet_along(packet, 0.0).is_none());
+                    }
+                });
+            }
+        }
+        assert!(asked > 3000, "{asked} packets");
+        assert!(said_clear * 4 >= clear * 3, "{said_clear} of {clear}");
     }
 }

@@ -10,7 +10,7 @@
 //! tests, so a packet returns what brute force returns.
 
 use super::cone::Cones;
-use super::slab::{set_bits, Packet, Searching};
+use super::slab::{set_bits, Limits, Packet, Searching};
 use super::walk::Ray64;
 use super::{TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
@@ -250,13 +250,26 @@ impl<R: Real> VoxelHashGrid<R> {
         if groups.budget.spent() {
             return;
         }
-        for level in &self.levels {
+        // Where the gated levels may hold the packet's hits: None for nowhere.
+        let gated_along =
+            (self.gate.as_ref()).map(|gate| gate.packet_along(packet, t_min.to_f64()));
+        for (i, level) in self.levels.iter().enumerate() {
+            let along = match gated_along {
+                Some(along) if self.gate.as_ref().is_some_and(|g| g.gates(i)) => along,
+                _ => Some(Limits::NONE.along),
+            };
+            let Some(along) = along else {
+                continue;
+            };
             let all = u64::MAX;
             level.walk_packet(
                 packet,
                 groups,
                 all,
-                f64::INFINITY,
+                Limits {
+                    along,
+                    ..Limits::NONE
+                },
                 self.empty_space,
                 |ids, groups, live| {
                     let searching = groups_of(live);

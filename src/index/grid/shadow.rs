@@ -35,7 +35,7 @@
 use super::cone::Cones;
 use super::packet::{groups_of, take_masks, PacketMailbox, GROUPS, LANES, RAYS};
 use super::seek::SeekBlocker;
-use super::slab::{set_bits, Packet, Searching};
+use super::slab::{set_bits, Limits, Packet, Searching};
 use super::walk::Ray64;
 use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
@@ -322,7 +322,10 @@ impl<R: Real> VoxelHashGrid<R> {
             packet,
             rays,
             among,
-            widest,
+            Limits {
+                widest,
+                ..Limits::NONE
+            },
             self.empty_space,
             |ids, rays, live| {
                 let mut searching = groups_of(live);

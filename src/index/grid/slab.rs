@@ -186,6 +186,16 @@ impl Packet {
         self.spread
     }
 
+    /// The axis every ray travels along the same way.
+    pub fn axis(&self) -> usize {
+        self.axis
+    }
+
+    /// +1 where the rays go up [`Packet::axis`], −1 where they go down.
+    pub fn step(&self) -> i64 {
+        self.step
+    }
+
     /// The two axes across the slabs.
     fn cross(&self) -> [usize; 2] {
         [(self.axis + 1) % 3, (self.axis + 2) % 3]
@@ -193,7 +203,7 @@ impl Packet {
 
     /// The least and greatest slope and start offset of the rays in `live`,
     /// per cross axis.
-    fn slope_range(&self, live: u64) -> SlopeRange {
+    pub(super) fn slope_range(&self, live: u64) -> SlopeRange {
         let mut range = SlopeRange {
             lo: [f64::INFINITY; 2],
             hi: [f64::NEG_INFINITY; 2],
@@ -214,7 +224,8 @@ impl Packet {
 }
 
 /// The spread of a set of the packet's rays across the slabs.
-struct SlopeRange {
+#[derive(Clone, Copy)]
+pub(super) struct SlopeRange {
     lo: [f64; 2],
     hi: [f64; 2],
     /// The least and greatest start offsets (see [`Packet::offset_lo`]).
@@ -222,11 +233,27 @@ struct SlopeRange {
     offset_hi: [f64; 2],
 }
 
+impl SlopeRange {
+    /// The same slopes, the offsets widened by `by` each way.
+    pub(super) fn widened(&self, by: f64) -> SlopeRange {
+        SlopeRange {
+            offset_lo: self.offset_lo.map(|x| x - by),
+            offset_hi: self.offset_hi.map(|x| x + by),
+            ..*self
+        }
+    }
+
+    /// The greatest slope's magnitude.
+    pub(super) fn steepest(&self) -> f64 {
+        (self.lo.iter().chain(&self.hi)).fold(0.0, |m, x| greater(m, x.abs()))
+    }
+}
+
 /// A rectangle of cells across the slab axis: `[lo, hi]` on the two other axes.
 #[derive(Clone, Copy)]
-struct Rect {
-    lo: [i64; 2],
-    hi: [i64; 2],
+pub(super) struct Rect {
+    pub lo: [i64; 2],
+    pub hi: [i64; 2],
 }
 
 /// Most blocks a layer's rectangle may cover for them all to be fetched up
@@ -235,12 +262,33 @@ const LAYER_BLOCKS: usize = 16;
 
 impl Rect {
     /// The cells between two planes, from the cells each plane meets.
-    fn between(a: &Rect, b: &Rect) -> Rect {
+    #[inline(always)]
+    pub(super) fn between(a: &Rect, b: &Rect) -> Rect {
         Rect {
             lo: [a.lo[0].min(b.lo[0]), a.lo[1].min(b.lo[1])],
             hi: [a.hi[0].max(b.hi[0]), a.hi[1].max(b.hi[1])],
         }
     }
+}
+
+/// How far a packet walk through a level may go.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Limits {
+    /// The most cells one slab's rectangle may span: past it the walk
+    /// gives up (the rays fan out too wide to share it).
+    pub widest: f64,
+    /// The planes across the packet's axis (coordinates times its step,
+    /// the lesser first) between which the walk looks: it walks the slabs
+    /// that meet them and no others.
+    pub along: [f64; 2],
+}
+
+impl Limits {
+    /// Every slab, however wide.
+    pub const NONE: Limits = Limits {
+        widest: f64::INFINITY,
+        along: [f64::NEG_INFINITY, f64::INFINITY],
+    };
 }
 
 /// Relative widening of the rule that retires a ray, against the rounding
@@ -300,8 +348,9 @@ impl Search {
 }
 
 /// The cells, on the two cross axes, that rays with slopes in a
-/// [`SlopeRange`] meet on a plane across the slab axis, in one level.
-struct PlaneCells {
+/// [`SlopeRange`] meet on a plane across the slab axis, in one lattice
+/// (a level's cells, or the gate's cubes).
+pub(super) struct PlaneCells {
     /// The origin's cross coordinates relative to the level's lattice, in cells.
     start: [f64; 2],
     inv_cell: f64,
@@ -311,14 +360,24 @@ struct PlaneCells {
 
 impl PlaneCells {
     fn new(level: &Level, packet: &Packet) -> Self {
+        PlaneCells::of_lattice(&level.origin.to_array(), level.per_cell, level.dims, packet)
+    }
+
+    /// The cells of the lattice whose cell (0, 0, 0) starts at `origin`,
+    /// `per_cell` of them a unit, `dims` a side.
+    pub(super) fn of_lattice(
+        origin: &[f64; 3],
+        per_cell: f64,
+        dims: [i64; 3],
+        packet: &Packet,
+    ) -> Self {
         let cross = packet.cross();
         // Cells are powers of two, so scaling by the reciprocal is exact
         // and rounds exactly as dividing by the side would.
-        let inv_cell = level.per_cell;
         PlaneCells {
-            start: cross.map(|a| (packet.origin[a] - level.origin[a]) * inv_cell),
-            inv_cell,
-            top: cross.map(|a| (level.dims[a] - 1) as f64),
+            start: cross.map(|a| (packet.origin[a] - origin[a]) * per_cell),
+            inv_cell: per_cell,
+            top: cross.map(|a| (dims[a] - 1) as f64),
         }
     }
 
@@ -326,7 +385,7 @@ impl PlaneCells {
     /// axis: a ray's cross coordinate there is `o_u + delta·m + c` for its
     /// slope m and start offset c.
     #[inline(always)]
-    fn at(&self, range: &SlopeRange, delta: f64) -> Rect {
+    pub(super) fn at(&self, range: &SlopeRange, delta: f64) -> Rect {
         let mut rect = Rect {
             lo: [0; 2],
             hi: [0; 2],
@@ -367,8 +426,9 @@ impl PlaneCells {
 impl Level {
     /// Walks the rays `among` (a mask) of the packet through this level,
     /// calling `visit` with the sphere ids of every occupied cell a
-    /// still-searching ray may cross. False, walking nothing, when those
-    /// rays fan out across more than `widest` cells of one slab: so wide a
+    /// still-searching ray may cross within the slabs that meet
+    /// `limits.along`. False, walking nothing, when those rays fan out
+    /// across more than `limits.widest` cells of one slab: so wide a
     /// rectangle would visit more cells than the rays one at a time.
     ///
     /// A slab's rectangle joins the cells its two planes meet: the cross
@@ -376,12 +436,13 @@ impl Level {
     /// over a slab and a set of rays its extremes lie on the planes, at the
     /// extreme slopes. Rounding is monotone, so the rectangle of a slab
     /// computed so lies inside that of the layer it belongs to.
+    #[inline(never)]
     pub(super) fn walk_packet<S: Searching>(
         &self,
         packet: &Packet,
         rays: &mut S,
         among: u64,
-        widest: f64,
+        limits: Limits,
         empty_space: EmptySpace,
         mut visit: impl FnMut(&[u32], &mut S, u64),
     ) -> bool {
@@ -409,7 +470,9 @@ impl Level {
             first_along = lesser(first_along, pa);
             last_along = greater(last_along, pb);
         }
-        if live == 0 {
+        let first_along = greater(first_along, limits.along[0]);
+        let last_along = lesser(last_along, limits.along[1]);
+        if live == 0 || first_along > last_along {
             return true;
         }
         let top = self.dims[k] - 1;
@@ -433,7 +496,7 @@ impl Level {
         let cells = PlaneCells::new(self, packet);
         let (first, last) = (first * step, last * step);
         let ends = [delta(entry_plane(first)), delta(entry_plane(last + step))];
-        if cells.widest(&range, ends) > widest {
+        if cells.widest(&range, ends) > limits.widest {
             return false;
         }
         let mut blocks = LayerBlocks {
