@@ -12,7 +12,7 @@
 use super::cone::Cones;
 use super::slab::{set_bits, Limits, Packet, Searching};
 use super::walk::Ray64;
-use super::{TestBudget, Tests, VoxelHashGrid};
+use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Answered, Hit};
@@ -261,32 +261,49 @@ impl<R: Real> VoxelHashGrid<R> {
             let Some(along) = along else {
                 continue;
             };
-            let all = u64::MAX;
-            level.walk_packet(
-                packet,
-                groups,
-                all,
-                Limits {
-                    along,
-                    ..Limits::NONE
-                },
-                self.empty_space,
-                |ids, groups, live| {
-                    let searching = groups_of(live);
-                    for &i in ids {
-                        if groups.budget.spent() {
-                            return;
-                        }
-                        if mailbox.first_visit(i) {
-                            self.test_eye_groups(i, &cones, groups, searching);
-                        }
-                    }
-                },
-            );
+            self.walk_level(level, packet, groups, along, &mut mailbox, &cones);
             if groups.budget.spent() {
                 return;
             }
         }
+    }
+
+    /// Walks the packet through `level` within the planes `along`, testing
+    /// each candidate new to the mailbox. Out of line: inlined into
+    /// [`Self::trace_packet`], the walk came out dearer on every file.
+    #[inline(never)]
+    fn walk_level(
+        &self,
+        level: &Level,
+        packet: &Packet,
+        groups: &mut Groups<R>,
+        along: [f64; 2],
+        mailbox: &mut PacketMailbox,
+        cones: &Cones,
+    ) {
+        let limits = Limits {
+            along,
+            ..Limits::NONE
+        };
+        let all = u64::MAX;
+        level.walk_packet(
+            packet,
+            groups,
+            all,
+            limits,
+            self.empty_space,
+            |ids, groups, live| {
+                let searching = groups_of(live);
+                for &i in ids {
+                    if groups.budget.spent() {
+                        return;
+                    }
+                    if mailbox.first_visit(i) {
+                        self.test_eye_groups(i, cones, groups, searching);
+                    }
+                }
+            },
+        );
     }
 
     /// Tests candidate `i` against the groups among `searching` whose cones

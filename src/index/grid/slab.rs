@@ -436,7 +436,6 @@ impl Level {
     /// over a slab and a set of rays its extremes lie on the planes, at the
     /// extreme slopes. Rounding is monotone, so the rectangle of a slab
     /// computed so lies inside that of the layer it belongs to.
-    #[inline(never)]
     pub(super) fn walk_packet<S: Searching>(
         &self,
         packet: &Packet,
