@@ -366,7 +366,7 @@ impl Gate {
             let marked = (lo[0].max(0)..=hi[0].min(self.dims[u] - 1)).any(|cu| {
                 (lo[1].max(0)..=hi[1].min(self.dims[v] - 1)).any(|cv| {
                     (c[u], c[v]) = (cu, cv);
-                    self.clouds.distance(c, Heading::of([1; 3])) == 0
+                    self.is_marked(c)
                 })
             });
             if marked {
@@ -384,6 +384,12 @@ impl Gate {
         };
         let widen = self.slack + self.side;
         Some([ends(first_marked)[0] - widen, ends(last_marked)[1] + widen])
+    }
+
+    /// Whether cube `c` is marked: its clouds put it at distance 0 ahead on
+    /// every heading.
+    fn is_marked(&self, c: [i64; 3]) -> bool {
+        self.clouds.distance(c, Heading::of([1; 3])) == 0
     }
 
     /// A bound on the rounding of the gate walk's t, with room: each t is a
@@ -418,8 +424,28 @@ mod tests {
     use crate::rng::Rng;
     use glam::DVec3;
 
-    /// The first t in [t_lo, t_hi] at which the ray is in a marked cube, by
-    /// clipping it to every marked cube's box.
+    /// The spans of t in [t_lo, t_hi] the ray spends in each marked cube,
+    /// by clipping it to every marked cube's box.
+    fn marked_spans<'a>(
+        gate: &'a Gate,
+        marked: &'a [bool],
+        ray: &'a Ray64,
+        t_lo: f64,
+        t_hi: f64,
+    ) -> impl Iterator<Item = (f64, f64)> + 'a {
+        let [nx, ny, _] = gate.dims;
+        (marked.iter().enumerate())
+            .filter(|(_, &m)| m)
+            .filter_map(move |(i, _)| {
+                let i = i as i64;
+                let c = [i % nx, i / nx % ny, i / (nx * ny)];
+                let lo = [0, 1, 2].map(|a| gate.origin[a] + c[a] as f64 * gate.side);
+                let hi = lo.map(|x| x + gate.side);
+                super::super::walk::clip_to_box(&lo, &hi, ray, t_lo, t_hi)
+            })
+    }
+
+    /// The first t in [t_lo, t_hi] at which the ray is in a marked cube.
     fn first_by_brute_force(
         gate: &Gate,
         marked: &[bool],
@@ -427,16 +453,8 @@ mod tests {
         t_lo: f64,
         t_hi: f64,
     ) -> Option<f64> {
-        let [nx, ny, _] = gate.dims;
-        (marked.iter().enumerate())
-            .filter(|(_, &m)| m)
-            .filter_map(|(i, _)| {
-                let i = i as i64;
-                let c = [i % nx, i / nx % ny, i / (nx * ny)];
-                let lo = [0, 1, 2].map(|a| gate.origin[a] + c[a] as f64 * gate.side);
-                let hi = lo.map(|x| x + gate.side);
-                super::super::walk::clip_to_box(&lo, &hi, ray, t_lo, t_hi).map(|(t0, _)| t0)
-            })
+        marked_spans(gate, marked, ray, t_lo, t_hi)
+            .map(|(t0, _)| t0)
             .reduce(f64::min)
     }
 
@@ -486,7 +504,7 @@ mod tests {
     }
 
     /// The planes along the packet's axis (times its step) where `ray`
-    /// enters and leaves each marked cube within [t_lo, ∞).
+    /// enters and leaves each marked cube, from t = 0 on.
     fn marked_planes(
         gate: &Gate,
         marked: &[bool],
@@ -494,16 +512,7 @@ mod tests {
         axis: usize,
         step: f64,
     ) -> Vec<f64> {
-        let [nx, ny, _] = gate.dims;
-        (marked.iter().enumerate())
-            .filter(|(_, &m)| m)
-            .filter_map(|(i, _)| {
-                let i = i as i64;
-                let c = [i % nx, i / nx % ny, i / (nx * ny)];
-                let lo = [0, 1, 2].map(|a| gate.origin[a] + c[a] as f64 * gate.side);
-                let hi = lo.map(|x| x + gate.side);
-                super::super::walk::clip_to_box(&lo, &hi, ray, 0.0, f64::INFINITY)
-            })
+        marked_spans(gate, marked, ray, 0.0, f64::INFINITY)
             .flat_map(|(t0, t1)| [t0, t1].map(|t| (ray.o[axis] + t * ray.d[axis]) * step))
             .collect()
     }
