@@ -316,13 +316,13 @@ impl Gate {
     ///
     /// The packet crosses the lattice layer by layer along its axis, as a
     /// packet crosses a level's slabs ([`super::slab`]): each layer's
-    /// rectangle of cubes holds every ray's path through it, and is widened
-    /// by a cube each way against the rounding of its corners (at most
-    /// [`MARGIN`] of the magnitudes involved, far below a cube where the
-    /// gate answers at all). A hit of a gated level lies in a marked cube
-    /// (module docs), so in a marked layer of the ray; the planes returned
-    /// are those layers' outer planes, widened by the levels' slack and a
-    /// cube.
+    /// rectangle of cubes holds every ray's path through it, the rays'
+    /// offsets widened by a bound on the rounding of its corners (at most
+    /// [`MARGIN`] of the magnitudes involved, times the steepest slope; far
+    /// below a cube where the gate answers at all). A hit of a gated level
+    /// lies in a marked cube (module docs), so in a layer where its ray meets
+    /// one; the planes returned are those layers' outer planes, widened by
+    /// the levels' slack and a cube.
     #[inline(never)]
     pub fn packet_along(&self, packet: &Packet, t_min: f64) -> Option<[f64; 2]> {
         let everywhere = Some([f64::NEG_INFINITY, f64::INFINITY]);
@@ -330,50 +330,30 @@ impl Gate {
         let range = packet.slope_range(u64::MAX);
         let magnitude = self.extent + packet.origin.iter().map(|x| x.abs()).sum::<f64>();
         let rounding = MARGIN * magnitude * (1.0 + range.steepest());
-        let ahead_only = t_min >= 0.0 && packet.spread() == 0.0;
-        if !(ahead_only && rounding < self.side / 4.0) {
+        let from_one_point_ahead = t_min >= 0.0 && packet.spread() == 0.0;
+        if !(from_one_point_ahead && rounding < self.side / 4.0) {
             return everywhere;
         }
-        // The layers from the origin's (less one) on, in the rays' direction.
-        let top = self.dims[k] - 1;
-        let origin_layer = floor_to_int((packet.origin[k] - self.origin[k]) * self.per_side)
-            .clamp(-1, top + 1)
-            - step;
-        let (first, last) = if step > 0 {
-            (origin_layer.max(0), top)
-        } else {
-            (origin_layer.min(top), 0)
-        };
-        if (last - first) * step < 0 {
-            return None;
-        }
-        if (last - first).abs() >= PACKET_LAYERS {
+        let (first, last) = self.layers_ahead(packet)?;
+        let layers = (last - first).abs() + 1;
+        if layers > PACKET_LAYERS {
             return everywhere;
         }
+        // Each layer's rectangle, between the planes it lies between.
         let range = range.widened(rounding);
         let cubes = PlaneCells::of_lattice(&self.origin, self.per_side, self.dims, packet);
         let plane = |i: i64| self.origin[k] + i as f64 * self.side - packet.origin[k];
-        let [u, v] = [(k + 1) % 3, (k + 2) % 3];
         let (mut first_marked, mut last_marked) = (None, None);
-        let mut s = first;
-        while (last - s) * step >= 0 {
+        for s in (0..layers).map(|n| first + n * step) {
             let rect = Rect::between(&cubes.at(&range, plane(s)), &cubes.at(&range, plane(s + 1)));
-            let (lo, hi) = (rect.lo, rect.hi);
-            if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
-                return everywhere;
+            match self.marked_within(k, s, &rect) {
+                None => return everywhere,
+                Some(true) => {
+                    first_marked.get_or_insert(s);
+                    last_marked = Some(s);
+                }
+                Some(false) => {}
             }
-            let mut c = [s; 3];
-            let marked = (lo[0].max(0)..=hi[0].min(self.dims[u] - 1)).any(|cu| {
-                (lo[1].max(0)..=hi[1].min(self.dims[v] - 1)).any(|cv| {
-                    (c[u], c[v]) = (cu, cv);
-                    self.is_marked(c)
-                })
-            });
-            if marked {
-                first_marked.get_or_insert(s);
-                last_marked = Some(s);
-            }
-            s += step;
         }
         let (first_marked, last_marked) = (first_marked?, last_marked?);
         // Layer s lies between planes s and s + 1; times the step, in order.
@@ -384,6 +364,41 @@ impl Gate {
         };
         let widen = self.slack + self.side;
         Some([ends(first_marked)[0] - widen, ends(last_marked)[1] + widen])
+    }
+
+    /// The first and last layer of cubes across `packet`'s axis that its
+    /// rays may cross: from the origin's (less one, against rounding) on, in
+    /// their direction. None where the lattice lies behind the origin.
+    fn layers_ahead(&self, packet: &Packet) -> Option<(i64, i64)> {
+        let (k, step) = (packet.axis(), packet.step());
+        let top = self.dims[k] - 1;
+        let origin_layer = floor_to_int((packet.origin[k] - self.origin[k]) * self.per_side)
+            .clamp(-1, top + 1)
+            - step;
+        let (first, last) = if step > 0 {
+            (origin_layer.max(0), top)
+        } else {
+            (origin_layer.min(top), 0)
+        };
+        ((last - first) * step >= 0).then_some((first, last))
+    }
+
+    /// Whether layer `s` across axis `k` holds a marked cube within `rect`
+    /// (cubes within the lattice); None where the rectangle spans more than
+    /// [`PACKET_CUBES`] cubes.
+    fn marked_within(&self, k: usize, s: i64, rect: &Rect) -> Option<bool> {
+        let (lo, hi) = (rect.lo, rect.hi);
+        if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
+            return None;
+        }
+        let [u, v] = [(k + 1) % 3, (k + 2) % 3];
+        let mut c = [s; 3];
+        Some((lo[0]..=hi[0]).any(|cu| {
+            (lo[1]..=hi[1]).any(|cv| {
+                (c[u], c[v]) = (cu, cv);
+                self.is_marked(c)
+            })
+        }))
     }
 
     /// Whether cube `c` is marked: its clouds put it at distance 0 ahead on

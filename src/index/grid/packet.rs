@@ -251,11 +251,11 @@ impl<R: Real> VoxelHashGrid<R> {
             return;
         }
         // Where the gated levels may hold the packet's hits: None for nowhere.
-        let gated_along =
-            (self.gate.as_ref()).map(|gate| gate.packet_along(packet, t_min.to_f64()));
+        let gate = self.gate.as_ref();
+        let gated_along = gate.map(|gate| gate.packet_along(packet, t_min.to_f64()));
         for (i, level) in self.levels.iter().enumerate() {
-            let along = match gated_along {
-                Some(along) if self.gate.as_ref().is_some_and(|g| g.gates(i)) => along,
+            let along = match (gate, gated_along) {
+                (Some(gate), Some(along)) if gate.gates(i) => along,
                 _ => Some(Limits::NONE.along),
             };
             let Some(along) = along else {
