@@ -351,7 +351,7 @@ impl Search {
 /// [`SlopeRange`] meet on a plane across the slab axis, in one lattice
 /// (a level's cells, or the gate's cubes).
 pub(super) struct PlaneCells {
-    /// The origin's cross coordinates relative to the level's lattice, in cells.
+    /// The origin's cross coordinates relative to the lattice, in cells.
     start: [f64; 2],
     inv_cell: f64,
     /// The last cell on each cross axis, as f64 (exact: it is below 2²¹).
