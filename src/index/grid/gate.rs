@@ -473,6 +473,16 @@ mod tests {
             .reduce(f64::min)
     }
 
+    /// A lattice of cubes from 2^-20 to 2^19 a side, of 1 to `most` a side,
+    /// its corner up to some 10^4 from the origin.
+    fn random_lattice(rng: &mut Rng, most: u64) -> Lattice {
+        let side = 2f64.powi((rng.next_u64() % 40) as i32 - 20);
+        let dims = [0; 3].map(|_| 1 + (rng.next_u64() % most) as i64);
+        let shift = 10f64.powi((rng.next_u64() % 5) as i32) * (rng.unit() - 0.5);
+        let origin = [0; 3].map(|_| ((shift + rng.unit()) / side).floor() * side);
+        Lattice { origin, side, dims }
+    }
+
     /// At random scales and places, the gate's t comes no later than the
     /// first marked cube's, and it says "none" for most rays that meet none.
     #[test]
@@ -480,11 +490,8 @@ mod tests {
         let mut rng = Rng::new(11);
         let (mut clear, mut said_clear) = (0, 0);
         for case in 0..300 {
-            let side = 2f64.powi((rng.next_u64() % 40) as i32 - 20);
-            let dims = [0; 3].map(|_| 1 + (rng.next_u64() % 10) as i64);
-            let shift = 10f64.powi((rng.next_u64() % 5) as i32) * (rng.unit() - 0.5);
-            let origin = [0; 3].map(|_| ((shift + rng.unit()) / side).floor() * side);
-            let lattice = Lattice { origin, side, dims };
+            let lattice = random_lattice(&mut rng, 10);
+            let Lattice { origin, side, dims } = lattice;
             let density = [0.002, 0.02, 0.1, 0.3][case % 4];
             let marked: Vec<bool> = (0..lattice.count()).map(|_| rng.unit() < density).collect();
             let gate = Gate::new(lattice, &marked, 0b11, 0.0);
@@ -540,11 +547,8 @@ mod tests {
         let mut rng = Rng::new(12);
         let (mut clear, mut said_clear, mut asked) = (0, 0, 0);
         for case in 0..300 {
-            let side = 2f64.powi((rng.next_u64() % 40) as i32 - 20);
-            let dims = [0; 3].map(|_| 1 + (rng.next_u64() % 12) as i64);
-            let shift = 10f64.powi((rng.next_u64() % 5) as i32) * (rng.unit() - 0.5);
-            let origin = [0; 3].map(|_| ((shift + rng.unit()) / side).floor() * side);
-            let lattice = Lattice { origin, side, dims };
+            let lattice = random_lattice(&mut rng, 12);
+            let Lattice { origin, side, dims } = lattice;
             let density = [0.002, 0.02, 0.1][case % 3];
             let marked: Vec<bool> = (0..lattice.count()).map(|_| rng.unit() < density).collect();
             let gate = Gate::new(lattice, &marked, 0b11, side * rng.unit());
