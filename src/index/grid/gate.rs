@@ -344,8 +344,12 @@ impl Gate {
         let cubes = PlaneCells::of_lattice(&self.origin, self.per_side, self.dims, packet);
         let plane = |i: i64| self.origin[k] + i as f64 * self.side - packet.origin[k];
         let (mut first_marked, mut last_marked) = (None, None);
+        // Layer s lies between planes s and s + 1, which ever comes first.
+        let mut entry = cubes.at(&range, plane(first + i64::from(step < 0)));
         for s in (0..layers).map(|n| first + n * step) {
-            let rect = Rect::between(&cubes.at(&range, plane(s)), &cubes.at(&range, plane(s + 1)));
+            let exit = cubes.at(&range, plane(s + i64::from(step > 0)));
+            let rect = Rect::between(&entry, &exit);
+            entry = exit;
             match self.marked_within(k, s, &rect) {
                 None => return everywhere,
                 Some(true) => {
