@@ -39,8 +39,8 @@ const MOST_MARKED: f64 = 1.0 / 16.0;
 /// Most layers of cubes a packet's rays may cross for the gate to be asked
 /// about them: a lattice long on one axis is left to the levels' walks.
 const PACKET_LAYERS: i64 = 512;
-/// Most cubes one layer's rectangle of a packet may span (widened by a cube
-/// each way) for the gate to look at each.
+/// Most cubes one layer's rectangle of a packet may span for the gate to
+/// look at each.
 const PACKET_CUBES: i64 = 64;
 
 /// Cubes marked over the levels' boxes, and how far unmarked space reaches
@@ -322,7 +322,7 @@ impl Gate {
     /// below a cube where the gate answers at all). A hit of a gated level
     /// lies in a marked cube (module docs), so in a layer where its ray meets
     /// one; the planes returned are those layers' outer planes, widened by
-    /// the levels' slack and a cube.
+    /// the levels' slack and by a cube against their own rounding.
     #[inline(never)]
     pub fn packet_along(&self, packet: &Packet, t_min: f64) -> Option<[f64; 2]> {
         let everywhere = Some([f64::NEG_INFINITY, f64::INFINITY]);
@@ -360,10 +360,10 @@ impl Gate {
             }
         }
         let (first_marked, last_marked) = (first_marked?, last_marked?);
-        // Layer s lies between planes s and s + 1; times the step, in order.
+        // Layer s lies between planes s and s + 1: coordinates times the
+        // step, the lesser first.
         let ends = |s: i64| {
-            let (a, b) = (plane(s) + packet.origin[k], plane(s + 1) + packet.origin[k]);
-            let (a, b) = (a * step as f64, b * step as f64);
+            let [a, b] = [s, s + 1].map(|i| (self.origin[k] + i as f64 * self.side) * step as f64);
             [a.min(b), a.max(b)]
         };
         let widen = self.slack + self.side;
