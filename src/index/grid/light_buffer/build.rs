@@ -29,7 +29,7 @@ const MOST_TEXELS_PER_SPHERE: f64 = 4.0;
 const TEXEL_PER_RECTANGLE: f64 = 1.0;
 /// Spheres a task of the parallel passes takes.
 const SPHERES_PER_TASK: usize = 1 << 14;
-/// Parts (and runs of texels) per thread in filling the lists.
+/// Parts per thread in filling the lists.
 const PARTS_PER_THREAD: usize = 4;
 /// Most bytes a sphere the parts' texel counts may take together.
 const COUNT_BYTES_PER_SPHERE: usize = 16;
@@ -323,7 +323,6 @@ impl Face {
 #[derive(Default)]
 pub(in crate::index::grid) struct Scratch {
     is_short: Vec<bool>,
-    placed_apart: Vec<bool>,
     seen: Vec<Seen>,
     spans: Vec<Span>,
     fill: FillScratch,
@@ -343,7 +342,6 @@ impl<R: Real> LightBuffer<R> {
         let light64 = light.to_dvec3();
         let Scratch {
             is_short,
-            placed_apart,
             seen,
             spans,
             fill,
@@ -394,9 +392,11 @@ impl<R: Real> LightBuffer<R> {
                 .unwrap_or_default()
         }));
         let (seen, spans) = (&seen[..], &spans[..]);
-        let several: Vec<(u32, Span)> = (seen.iter().enumerate())
+        // Spheres on several faces, listed on each (none too wide), in
+        // sphere order (a parallel collect keeps it).
+        let several: Vec<(u32, Span)> = (seen.par_iter().enumerate())
             .filter(|(_, s)| s.face == SEVERAL_FACES)
-            .flat_map(|(i, _)| {
+            .flat_map_iter(|(i, _)| {
                 let (x, r) = ball(&spheres[i]);
                 let mut rects = Vec::new();
                 for_each_rect(x, r, near, |f, rect| rects.push(faces[f].span(f, &rect)));
@@ -407,15 +407,14 @@ impl<R: Real> LightBuffer<R> {
                     .map(move |span| (i as u32, span))
             })
             .collect();
-        placed_apart.clear();
-        placed_apart.resize(spheres.len(), false);
-        several
-            .iter()
-            .for_each(|&(i, _)| placed_apart[i as usize] = true);
-        let mut always: Vec<Entry> = (seen.iter().zip(spans).zip(&*placed_apart))
-            .enumerate()
-            .filter(|(_, ((_, span), &apart))| span.texels() == 0 && !apart)
-            .map(|(i, ((s, _), _))| Entry {
+        let placed_apart =
+            |i: usize| (several.binary_search_by_key(&(i as u32), |&(j, _)| j)).is_ok();
+        // The rest of those listed in no texel: every ray tests them.
+        let mut always: Vec<Entry> = (seen.par_iter().zip(spans).enumerate())
+            .filter(|(i, (s, span))| {
+                span.texels() == 0 && !(s.face == SEVERAL_FACES && placed_apart(*i))
+            })
+            .map(|(i, (s, _))| Entry {
                 sphere: i as u32,
                 nearest: s.nearest,
             })
@@ -533,16 +532,16 @@ struct Part<'a> {
 }
 
 impl Part<'_> {
-    /// Calls `visit` with each texel listing a sphere, that sphere and its
-    /// footprint there, sphere by sphere.
-    fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, u32, Footprint)) {
+    /// Calls `visit` with each sphere listed somewhere and its span, in
+    /// sphere order, those on several faces last.
+    fn for_each(&self, mut visit: impl FnMut(u32, &Span)) {
         for (span, i) in self.spans.iter().zip(self.first..) {
             if span.listed {
-                span.for_each(faces, |k, part| visit(k, i, part));
+                visit(i, span);
             }
         }
-        for &(i, span) in self.several {
-            span.for_each(faces, |k, part| visit(k, i, part));
+        for (i, span) in self.several {
+            visit(*i, span);
         }
     }
 }
@@ -550,16 +549,23 @@ impl Part<'_> {
 /// The fill's working memory, which the next light's reuses.
 #[derive(Default)]
 pub(in crate::index::grid) struct FillScratch {
-    /// Per part, its entries in each texel, then where it writes the next.
+    /// Per part, its entries in each texel, then where it writes the next
+    /// ([`TO_CUT`]).
     counts: Vec<Vec<u32>>,
-    /// Texel k's entries before the cut are `listed[raw[k]..raw[k + 1]]`.
-    raw: Vec<usize>,
-    /// Entries packed as the buffer keeps them: the parts write their own
-    /// places of each list at once.
+    /// The lists to be cut: each one's texel and its entries' places in
+    /// `listed`.
+    long: Vec<(usize, usize, usize)>,
+    /// The entries of the lists to be cut, packed as the buffer keeps them:
+    /// the parts write their own places of each list at once.
     listed: Vec<AtomicU32>,
     /// Each entry's footprint ([`Footprint`]'s bits), at the same place.
     footprints: Vec<AtomicU8>,
 }
+
+/// Set in a part's place for a texel ([`FillScratch::counts`]) where the
+/// list is to be cut: the place is then in the scratch lists, not the
+/// buffer's.
+const TO_CUT: u32 = 1 << 31;
 
 /// The texels' lists of the spheres `placements` place, cut at
 /// [`MOST_LISTED`]: their starts, the entries, and each texel's nearest
@@ -568,8 +574,10 @@ pub(in crate::index::grid) struct FillScratch {
 /// A counting sort, parallel over runs of spheres: each part counts its
 /// entries per texel, the counts become each part's places in each list,
 /// and each part writes its entries there, so every pass does the same
-/// work on each thread wherever the spheres' texels lie. The lists are
-/// then cut, in runs of texels holding equal numbers of entries.
+/// work on each thread wherever the spheres' texels lie. A list kept whole
+/// is written straight to its place in the buffer; a longer one goes to
+/// scratch, to be cut to its nearest entries in a pass of its own. Most
+/// lists are short, so most entries are written once.
 ///
 /// Lists past their `bounds` are refused by the count alone, before any
 /// entry is written.
@@ -582,63 +590,136 @@ fn fill_lists(
     split: Split,
     scratch: &mut FillScratch,
 ) -> Result<Lists, NoBuffer> {
+    // Places carry the flag in their top bit.
+    if bounds.most >= TO_CUT as usize {
+        return Err(NoBuffer::Unsuited);
+    }
+    let parts = placements.parts(split.parts);
+    count_entries(faces, texels, &parts, &mut scratch.counts);
+    let layout = place_lists(scratch, texels, bounds.most)?;
+    if !(bounds.fits)(layout.kept) {
+        return Err(NoBuffer::NoRoom);
+    }
     let FillScratch {
         counts,
-        raw,
+        long,
         listed,
         footprints,
     } = scratch;
-    let parts = placements.parts(split.parts);
-    // Each part's entries per texel.
+    // Room for the most entries any light may list, so that no later
+    // light's lists to be cut move them to fresh pages.
+    listed.clear();
+    listed.reserve(bounds.most);
+    listed.resize_with(layout.to_cut, || AtomicU32::new(0));
+    footprints.clear();
+    footprints.reserve(bounds.most);
+    footprints.resize_with(layout.to_cut, || AtomicU8::new(0));
+    let kept = layout.kept;
+    let kept_entries: Vec<AtomicU32> = (0..kept).into_par_iter().map(|_| 0.into()).collect();
+    let kept_footprints: Vec<AtomicU8> = (0..kept).into_par_iter().map(|_| 0.into()).collect();
+    let whole = Filled {
+        listed: &kept_entries,
+        footprints: &kept_footprints,
+    };
+    let cut = Filled {
+        listed: &listed[..],
+        footprints: &footprints[..],
+    };
+    let steps = &bounds.steps;
+    write_entries(faces, &parts, counts, |i| steps.pack(entry(i)), whole, cut);
+    let complete_within = cut_lists(long, cut, whole, &layout.starts, texels, bounds.steps);
+    Ok(Lists {
+        starts: layout.starts,
+        entries: (kept_entries.into_iter())
+            .map(|e| Listed::from_bits(e.into_inner()))
+            .collect(),
+        footprints: (kept_footprints.into_iter())
+            .map(|f| Footprint::from_bits(f.into_inner()))
+            .collect(),
+        complete_within,
+    })
+}
+
+/// Each part's entries per texel, into `counts` (one vector a part).
+fn count_entries(faces: &[Face; 6], texels: usize, parts: &[Part], counts: &mut Vec<Vec<u32>>) {
     counts.resize_with(parts.len(), Vec::new);
     counts.truncate(parts.len());
     (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, counts)| {
         counts.clear();
         counts.resize(texels, 0);
-        part.for_each(faces, |k, _, _| counts[k] += 1);
+        part.for_each(|_, span| span.for_each(faces, |k, _| counts[k] += 1));
     });
-    // Each part's first place in each list, and where the lists start.
-    raw.clear();
-    raw.reserve(texels + 1);
-    raw.push(0);
-    let (mut at, mut kept) = (0usize, 0usize);
+}
+
+/// Where the lists go, from the parts' counts.
+struct Layout {
+    /// Texel k's list is `starts[k]..starts[k + 1]` of the buffer's entries.
+    starts: Vec<u32>,
+    /// Entries the buffer keeps.
+    kept: usize,
+    /// Entries of the lists to be cut, before the cut.
+    to_cut: usize,
+}
+
+/// Turns each part's count per texel into its first place in that list
+/// (in the buffer, or [`TO_CUT`] and in scratch for a list longer than
+/// [`MOST_LISTED`], which `long` then names). None past `most` entries.
+fn place_lists(scratch: &mut FillScratch, texels: usize, most: usize) -> Result<Layout, NoBuffer> {
+    let FillScratch { counts, long, .. } = scratch;
+    let mut starts = Vec::with_capacity(texels + 1);
+    starts.push(0u32);
+    long.clear();
+    let (mut listed, mut kept, mut to_cut) = (0usize, 0usize, 0usize);
     for k in 0..texels {
-        let list_start = at;
-        for counts in counts.iter_mut() {
-            let n = counts[k] as usize;
-            counts[k] = at as u32;
-            at += n;
-        }
-        if at > bounds.most {
+        let n: usize = counts.iter().map(|c| c[k] as usize).sum();
+        listed += n;
+        if listed > most {
             return Err(NoBuffer::Unsuited);
         }
-        kept += (at - list_start).min(MOST_LISTED);
-        raw.push(at);
+        let (mut at, flag) = if n > MOST_LISTED {
+            long.push((k, to_cut, to_cut + n));
+            to_cut += n;
+            (to_cut - n, TO_CUT)
+        } else {
+            (kept, 0)
+        };
+        for counts in counts.iter_mut() {
+            let c = counts[k] as usize;
+            counts[k] = at as u32 | flag;
+            at += c;
+        }
+        kept += n.min(MOST_LISTED);
+        starts.push(kept as u32);
     }
-    if !(bounds.fits)(kept) {
-        return Err(NoBuffer::NoRoom);
-    }
-    // Every part writes its entries, in sphere order, at its places.
-    // Room for the most entries any light may list, so that no later
-    // light's lists move them to fresh pages.
-    listed.clear();
-    listed.reserve(bounds.most);
-    listed.resize_with(at, || AtomicU32::new(0));
-    footprints.clear();
-    footprints.reserve(bounds.most);
-    footprints.resize_with(at, || AtomicU8::new(0));
-    let filled = Filled {
-        listed: &listed[..],
-        footprints: &footprints[..],
-    };
-    let steps = &bounds.steps;
-    (parts.par_iter().zip(counts.par_iter_mut())).for_each(|(part, cursors)| {
-        part.for_each(faces, |k, i, footprint| {
-            filled.put(cursors[k] as usize, steps.pack(entry(i)), footprint);
-            cursors[k] += 1;
+    Ok(Layout {
+        starts,
+        kept,
+        to_cut,
+    })
+}
+
+/// Every part writes its entries (sphere i's packed by `packed`), in
+/// sphere order, at its `places`: into `whole` or, flagged [`TO_CUT`],
+/// into `cut`.
+fn write_entries(
+    faces: &[Face; 6],
+    parts: &[Part],
+    places: &mut [Vec<u32>],
+    packed: impl Fn(u32) -> Listed + Sync,
+    whole: Filled,
+    cut: Filled,
+) {
+    (parts.par_iter().zip(places.par_iter_mut())).for_each(|(part, places)| {
+        part.for_each(|i, span| {
+            let entry = packed(i);
+            span.for_each(faces, |k, footprint| {
+                let place = places[k];
+                places[k] += 1;
+                let to = if place & TO_CUT == 0 { whole } else { cut };
+                to.put((place & !TO_CUT) as usize, entry, footprint);
+            });
         });
     });
-    Ok(cut_lists(raw, filled, split.runs, bounds.steps))
 }
 
 /// How many entries a light's lists may take: at most `most` before the
@@ -651,8 +732,8 @@ struct ListBounds<F> {
     steps: Steps,
 }
 
-/// The lists as filled, before the cut: entries and their footprints at
-/// the same places.
+/// Entries and their footprints at the same places, written by the
+/// parts at once.
 #[derive(Clone, Copy)]
 struct Filled<'a> {
     listed: &'a [AtomicU32],
@@ -665,19 +746,11 @@ impl Filled<'_> {
         self.footprints[at].store(footprint.bits(), Relaxed);
     }
 
-    /// The entry at `at` and its footprint.
-    fn get(&self, at: usize) -> (Listed, Footprint) {
-        (
-            Listed::from_bits(self.listed[at].load(Relaxed)),
-            Footprint::from_bits(self.footprints[at].load(Relaxed)),
-        )
-    }
-
-    /// [`Filled::get`] in one word that orders as the entry does (the
-    /// footprint below it), for the cut to select by.
+    /// The entry at `at` and its footprint, in one word that orders as the
+    /// entry does (the footprint below it), for the cut to select by.
     fn word(&self, at: usize) -> u64 {
-        let (entry, footprint) = self.get(at);
-        u64::from(entry.bits()) << 8 | u64::from(footprint.bits())
+        let entry = self.listed[at].load(Relaxed);
+        u64::from(entry) << 8 | u64::from(self.footprints[at].load(Relaxed))
     }
 }
 
@@ -701,107 +774,60 @@ struct Lists {
 }
 
 /// How the fill shares its work: the parts of the spheres that count and
-/// write entries, and the runs of texels whose lists are cut.
+/// write entries.
 #[derive(Clone, Copy, Debug)]
 struct Split {
     parts: usize,
-    runs: usize,
 }
 
 impl Split {
-    /// A few of each per thread, so that uneven ones still share the work,
-    /// but no more parts than keep their counts within
-    /// [`COUNT_BYTES_PER_SPHERE`].
+    /// A few per thread, so that uneven ones still share the work, but no
+    /// more than keep their counts within [`COUNT_BYTES_PER_SPHERE`].
     fn for_threads(spheres: usize, texels: usize, threads: usize) -> Self {
         let affordable = spheres * COUNT_BYTES_PER_SPHERE / (4 * texels.max(1));
         Split {
             parts: (PARTS_PER_THREAD * threads).min(affordable).max(1),
-            runs: PARTS_PER_THREAD * threads,
         }
     }
 }
 
-/// The lists `filled[raw[k]..raw[k + 1]]`, each cut to its nearest
-/// [`MOST_LISTED`]: the kept lists' starts, their entries and footprints,
-/// and for each list a distance no sphere left out of it comes nearer than.
+/// Cuts each list of `long` (its texel, and its entries' places in
+/// `filled`) to its nearest [`MOST_LISTED`], written at its start in
+/// `kept`; returns, for each of the `texels`, a distance no sphere left
+/// out of its list comes nearer than (+∞ for a list kept whole).
 ///
 /// A packed entry orders as (step, sphere), so the cut keeps the spheres of
 /// the nearest steps, ties by position (an order independent of the
 /// threads'), and the first one left out has the least step of those left
-/// out: [`Steps::floor_of`] of it is below all their distances. A list
-/// keeps its order (the spheres', which is the grid's cell order) unless
-/// it is cut.
-fn cut_lists(raw: &[usize], filled: Filled, runs: usize, steps: Steps) -> Lists {
-    let texels = raw.len() - 1;
-    let kept = |k: usize| (raw[k + 1] - raw[k]).min(MOST_LISTED);
-    let mut starts = Vec::with_capacity(texels + 1);
-    starts.push(0u32);
-    let mut total = 0;
-    for k in 0..texels {
-        total += kept(k);
-        starts.push(total as u32);
-    }
-    // Runs of texels with equal numbers of entries before the cut, each
-    // with its own part of the kept entries and of the distances left out.
-    let runs = runs.max(1);
-    let ends: Vec<usize> = (1..=runs)
-        .map(|r| match r {
-            _ if r == runs => texels,
-            _ => raw
-                .partition_point(|&e| e < raw[texels] * r / runs)
-                .min(texels),
+/// out: [`Steps::floor_of`] of it is below all their distances.
+fn cut_lists(
+    long: &[(usize, usize, usize)],
+    filled: Filled,
+    kept: Filled,
+    starts: &[u32],
+    texels: usize,
+    steps: Steps,
+) -> Vec<f32> {
+    let left_out: Vec<(usize, f32)> = (long.par_iter())
+        .map_init(Vec::new, |list, &(k, from, to)| {
+            list.clear();
+            list.extend((from..to).map(|at| filled.word(at)));
+            list.select_nth_unstable(MOST_LISTED);
+            for (at, &word) in (starts[k] as usize..).zip(&list[..MOST_LISTED]) {
+                let (entry, footprint) = unpack(word);
+                kept.put(at, entry, footprint);
+            }
+            (
+                k,
+                steps.floor_of(steps.step_of(unpack(list[MOST_LISTED]).0)),
+            )
         })
         .collect();
-    let mut entries = vec![Listed::default(); total];
-    let mut footprints = vec![Footprint::default(); total];
     let mut complete_within = vec![f32::INFINITY; texels];
-    let mut tasks = Vec::with_capacity(runs);
-    let mut rest = (
-        &mut entries[..],
-        &mut footprints[..],
-        &mut complete_within[..],
-    );
-    let mut from = 0;
-    for &end in &ends {
-        let end = end.max(from);
-        let n = (starts[end] - starts[from]) as usize;
-        let (mine, tail) = rest.0.split_at_mut(n);
-        let (mine_footprints, tail_footprints) = rest.1.split_at_mut(n);
-        let (mine_complete, tail_complete) = rest.2.split_at_mut(end - from);
-        tasks.push((from..end, mine, mine_footprints, mine_complete));
-        (rest, from) = ((tail, tail_footprints, tail_complete), end);
+    for (k, within) in left_out {
+        complete_within[k] = within;
     }
-    tasks
-        .into_par_iter()
-        .for_each(|(run, out, out_footprints, complete_within)| {
-            let mut list = Vec::new();
-            let mut kept = out.iter_mut().zip(out_footprints);
-            let mut put = |listed: (Listed, Footprint)| {
-                let (entry, footprint) = kept.next().expect("room for every kept entry");
-                (*entry, *footprint) = listed;
-            };
-            for (k, complete) in run.zip(complete_within) {
-                let places = raw[k]..raw[k + 1];
-                if places.len() <= MOST_LISTED {
-                    // Kept whole: straight to its place.
-                    places.for_each(|at| put(filled.get(at)));
-                    continue;
-                }
-                list.clear();
-                list.extend(places.map(|at| filled.word(at)));
-                list.select_nth_unstable(MOST_LISTED);
-                *complete = steps.floor_of(steps.step_of(unpack(list[MOST_LISTED]).0));
-                list[..MOST_LISTED]
-                    .iter()
-                    .for_each(|&word| put(unpack(word)));
-            }
-        });
-    Lists {
-        starts,
-        entries,
-        footprints,
-        complete_within,
-    }
+    complete_within
 }
 
 #[cfg(test)]
@@ -933,8 +959,8 @@ mod tests {
             };
             let want = one_by_one(&faces, &p, &entries);
             assert!(spheres < 3000 || want.iter().any(|(_, c)| c.is_finite()));
-            for (parts, runs) in [(1, 1), (2, 3), (7, 2), (64, 9)] {
-                let split = Split { parts, runs };
+            for parts in [1, 2, 7, 64] {
+                let split = Split { parts };
                 let entry = |i: u32| entries[i as usize];
                 let mut scratch = FillScratch::default();
                 let lists = fill_lists(&faces, 512, &p, entry, ample(), split, &mut scratch);
@@ -1012,7 +1038,7 @@ mod tests {
             several: &several,
         };
         let entry = |i: u32| entries[i as usize];
-        let split = Split { parts: 3, runs: 2 };
+        let split = Split { parts: 3 };
         let mut scratch = FillScratch::default();
         let bounds = ListBounds {
             most: 299,
@@ -1038,7 +1064,7 @@ mod tests {
             .map(|(list, _)| list.len())
             .sum();
         let entry = |i: u32| entries[i as usize];
-        let split = Split { parts: 3, runs: 2 };
+        let split = Split { parts: 3 };
         let mut scratch = FillScratch::default();
         let room = |kept_most: usize| ListBounds {
             most: 1 << 20,
