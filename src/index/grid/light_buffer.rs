@@ -158,18 +158,28 @@ pub(super) struct LightBuffer<R: Real> {
     entries: Vec<Listed>,
     footprints: Vec<Footprint>,
     steps: Steps,
-    /// How near to the light the first sphere left out of texel k's list
-    /// comes (+∞ where none was).
-    complete_within: Vec<f32>,
+    /// The lists that were cut, by texel: each one's texel and how near to
+    /// the light the first sphere left out of it comes. Kept apart from the
+    /// texels: few lists are cut, and a scene of small spheres spread in
+    /// every direction has far more texels than entries.
+    cut: Vec<LeftOut>,
+}
+
+/// A cut list's texel, and a distance no sphere left out of it comes nearer
+/// to the light than.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LeftOut {
+    texel: u32,
+    within: f32,
 }
 
 /// The bytes of a buffer's arrays: `always` and `entries` entries (with
-/// their footprints), `starts` list starts and `complete` distances left out.
-fn bytes_of(always: usize, entries: usize, starts: usize, complete: usize) -> usize {
+/// their footprints), `starts` list starts and `cut` lists cut.
+fn bytes_of(always: usize, entries: usize, starts: usize, cut: usize) -> usize {
     size_of::<Entry>() * always
         + (size_of::<Listed>() + size_of::<Footprint>()) * entries
         + size_of::<u32>() * starts
-        + size_of::<f32>() * complete
+        + size_of::<LeftOut>() * cut
 }
 
 /// The face a direction `x` from the light lies in (2·axis, plus 1 on the
@@ -203,8 +213,18 @@ impl<R: Real> LightBuffer<R> {
             self.always.capacity(),
             self.entries.capacity(),
             self.starts.capacity(),
-            self.complete_within.capacity(),
+            self.cut.capacity(),
         )
+    }
+
+    /// How near to the light the first sphere left out of texel k's list
+    /// comes: +∞ for a list shorter than the cut, or one not cut.
+    fn left_out(&self, k: usize, listed: usize) -> f32 {
+        if listed < MOST_LISTED {
+            return f32::INFINITY;
+        }
+        (self.cut.binary_search_by_key(&k, |c| c.texel as usize))
+            .map_or(f32::INFINITY, |i| self.cut[i].within)
     }
 
     /// Whether a sphere blocks the shadow ray from `origin` to the light,
@@ -245,12 +265,12 @@ impl<R: Real> LightBuffer<R> {
         let list = self.starts[k] as usize..self.starts[k + 1] as usize;
         let (steps, reach) = (&self.steps, self.steps.step(within));
         let mut listed = (self.entries[list.clone()].iter())
-            .zip(&self.footprints[list])
+            .zip(&self.footprints[list.clone()])
             .filter(|&(&l, &part)| part.holds(point) && steps.step_of(l) <= reach);
         if listed.any(|(&l, _)| blocks(steps.sphere(l))) {
             return Some(true);
         }
-        (f64::from(self.complete_within[k]) > within).then_some(false)
+        (f64::from(self.left_out(k, list.len())) > within).then_some(false)
     }
 }
 

@@ -5,7 +5,7 @@
 //! nearest [`MOST_LISTED`].
 
 use super::{
-    bytes_of, Entry, Face, Footprint, LightBuffer, Listed, NoBuffer, Steps, MOST_LISTED,
+    bytes_of, Entry, Face, Footprint, LeftOut, LightBuffer, Listed, NoBuffer, Steps, MOST_LISTED,
     NEAR_DIVISOR, SUB, TILE, WIDEN,
 };
 use crate::geometry::{Real, Vec3Ops, V3};
@@ -431,7 +431,7 @@ impl<R: Real> LightBuffer<R> {
         // Its bytes held are then its bytes counted.
         always.shrink_to_fit();
         let texels = faces.iter().map(Face::texel_count).sum();
-        let fits = |kept: usize| bytes_of(always.len(), kept, texels + 1, texels) <= room;
+        let fits = |kept: usize, cut: usize| bytes_of(always.len(), kept, texels + 1, cut) <= room;
         let entry = |i: u32| Entry {
             sphere: i,
             nearest: seen[i as usize].nearest,
@@ -454,7 +454,7 @@ impl<R: Real> LightBuffer<R> {
             entries: lists.entries,
             footprints: lists.footprints,
             steps,
-            complete_within: lists.complete_within,
+            cut: lists.cut,
         })
     }
 }
@@ -586,7 +586,7 @@ fn fill_lists(
     texels: usize,
     placements: &Placements,
     entry: impl Fn(u32) -> Entry + Sync,
-    bounds: ListBounds<impl FnOnce(usize) -> bool>,
+    bounds: ListBounds<impl FnOnce(usize, usize) -> bool>,
     split: Split,
     scratch: &mut FillScratch,
 ) -> Result<Lists, NoBuffer> {
@@ -597,7 +597,7 @@ fn fill_lists(
     let parts = placements.parts(split.parts);
     count_entries(faces, texels, &parts, &mut scratch.counts);
     let layout = place_lists(scratch, texels, bounds.most)?;
-    if !(bounds.fits)(layout.kept) {
+    if !(bounds.fits)(layout.kept, scratch.long.len()) {
         return Err(NoBuffer::NoRoom);
     }
     let FillScratch {
@@ -627,7 +627,7 @@ fn fill_lists(
     };
     let steps = &bounds.steps;
     write_entries(faces, &parts, counts, |i| steps.pack(entry(i)), whole, cut);
-    let complete_within = cut_lists(long, cut, whole, &layout.starts, texels, bounds.steps);
+    let cut = cut_lists(long, cut, whole, &layout.starts, bounds.steps);
     Ok(Lists {
         starts: layout.starts,
         entries: (kept_entries.into_iter())
@@ -636,7 +636,7 @@ fn fill_lists(
         footprints: (kept_footprints.into_iter())
             .map(|f| Footprint::from_bits(f.into_inner()))
             .collect(),
-        complete_within,
+        cut,
     })
 }
 
@@ -763,14 +763,14 @@ fn unpack(word: u64) -> (Listed, Footprint) {
 }
 
 /// The texels' lists as a buffer keeps them: texel k lists
-/// `entries[starts[k]..starts[k + 1]]` with their `footprints`, and
-/// `complete_within[k]` is how near to the light the first sphere left out
-/// of it comes.
+/// `entries[starts[k]..starts[k + 1]]` with their `footprints`, and `cut`
+/// says, for each list that was cut (in texel order), how near to the light
+/// the first sphere left out of it comes.
 struct Lists {
     starts: Vec<u32>,
     entries: Vec<Listed>,
     footprints: Vec<Footprint>,
-    complete_within: Vec<f32>,
+    cut: Vec<LeftOut>,
 }
 
 /// How the fill shares its work: the parts of the spheres that count and
@@ -793,8 +793,8 @@ impl Split {
 
 /// Cuts each list of `long` (its texel, and its entries' places in
 /// `filled`) to its nearest [`MOST_LISTED`], written at its start in
-/// `kept`; returns, for each of the `texels`, a distance no sphere left
-/// out of its list comes nearer than (+∞ for a list kept whole).
+/// `kept`; returns for each, in the same order, a distance no sphere left
+/// out of it comes nearer than.
 ///
 /// A packed entry orders as (step, sphere), so the cut keeps the spheres of
 /// the nearest steps, ties by position (an order independent of the
@@ -805,10 +805,9 @@ fn cut_lists(
     filled: Filled,
     kept: Filled,
     starts: &[u32],
-    texels: usize,
     steps: Steps,
-) -> Vec<f32> {
-    let left_out: Vec<(usize, f32)> = (long.par_iter())
+) -> Vec<LeftOut> {
+    (long.par_iter())
         .map_init(Vec::new, |list, &(k, from, to)| {
             list.clear();
             list.extend((from..to).map(|at| filled.word(at)));
@@ -817,17 +816,12 @@ fn cut_lists(
                 let (entry, footprint) = unpack(word);
                 kept.put(at, entry, footprint);
             }
-            (
-                k,
-                steps.floor_of(steps.step_of(unpack(list[MOST_LISTED]).0)),
-            )
+            LeftOut {
+                texel: k as u32,
+                within: steps.floor_of(steps.step_of(unpack(list[MOST_LISTED]).0)),
+            }
         })
-        .collect();
-    let mut complete_within = vec![f32::INFINITY; texels];
-    for (k, within) in left_out {
-        complete_within[k] = within;
-    }
-    complete_within
+        .collect()
 }
 
 #[cfg(test)]
@@ -883,10 +877,10 @@ mod tests {
     }
 
     /// Bounds no list reaches.
-    fn ample() -> ListBounds<impl FnOnce(usize) -> bool> {
+    fn ample() -> ListBounds<impl FnOnce(usize, usize) -> bool> {
         ListBounds {
             most: 1 << 20,
-            fits: |_| true,
+            fits: |_, _| true,
             steps: steps(),
         }
     }
@@ -968,8 +962,18 @@ mod tests {
                     starts,
                     entries: got,
                     footprints,
-                    complete_within: complete,
+                    cut,
                 } = lists.unwrap();
+                // The cut lists, in texel order, are those the reference cut.
+                let cut_texels: Vec<usize> = (want.iter().enumerate())
+                    .filter(|(_, (_, within))| within.is_finite())
+                    .map(|(k, _)| k)
+                    .collect();
+                let texels: Vec<usize> = cut.iter().map(|c| c.texel as usize).collect();
+                assert_eq!(texels, cut_texels, "{spheres} {split:?}");
+                let left_out = |k: usize| {
+                    (cut.iter().find(|c| c.texel as usize == k)).map_or(f32::INFINITY, |c| c.within)
+                };
                 for (k, (list, within)) in want.iter().enumerate() {
                     let at = starts[k] as usize..starts[k + 1] as usize;
                     let mut mine: List = (got[at.clone()].iter())
@@ -982,7 +986,7 @@ mod tests {
                         mine.sort_by_key(|&(i, part)| cut_order(&entries[i as usize], part));
                     }
                     assert_eq!(
-                        (&mine, complete[k]),
+                        (&mine, left_out(k)),
                         (list, *within),
                         "{spheres} {split:?} {k}"
                     );
@@ -1042,7 +1046,7 @@ mod tests {
         let mut scratch = FillScratch::default();
         let bounds = ListBounds {
             most: 299,
-            fits: |_| true,
+            fits: |_, _| true,
             steps: steps(),
         };
         let fill = fill_lists(&faces, 512, &p, entry, bounds, split, &mut scratch);
@@ -1068,7 +1072,7 @@ mod tests {
         let mut scratch = FillScratch::default();
         let room = |kept_most: usize| ListBounds {
             most: 1 << 20,
-            fits: move |kept: usize| kept <= kept_most,
+            fits: move |kept: usize, _| kept <= kept_most,
             steps: steps(),
         };
         let short = fill_lists(&faces, 512, &p, entry, room(want - 1), split, &mut scratch);
