@@ -27,6 +27,16 @@ Families (every sphere inside the default camera's frustum unless said):
   islands     clustered's clumps alone in empty space: no dust, no floor
               (most primary rays meet nothing)
   hugetiny    one sphere of radius 1e6 far away and N tiny spheres (1e-3)
+  fractal     clumps within clumps (Soneira-Peebles: 8 generations of 4
+              sub-clumps, each 1.9 times smaller), one sphere size
+  filaments   thin strands: about sqrt(N)/4 random walks of tiny spheres
+              (radius 0.008) wandering far beyond the view, hair or fibres
+  lognormal   uniform positions, radii log-normal (sigma 1.6: four decades
+              hold 95% of them)
+  onion       five concentric shells of spheres (rays cross several
+              surfaces and the hollows between them)
+  sheet       a flat carpet of small spheres out to the horizon, seen at a
+              grazing angle
 
 `--density K` scales how many spheres a primary ray crosses (default 4).
 """
@@ -143,6 +153,51 @@ def hugetiny(rng, n, density):
     return np.concatenate([p, [[0.0, 0.0, -2.0e6]]]), np.concatenate([r, [1.0e6]])
 
 
+def fractal(rng, n, density):
+    eta, shrink, generations = 4, 1.9, 8
+    pts, R = np.array([[0.0, 0.0, -7.0]]), 4.0
+    for _ in range(generations):
+        pts = np.repeat(pts, eta, axis=0) + ball_points(rng, len(pts) * eta) * R
+        R /= shrink
+    p = pts[rng.choice(len(pts), n, replace=len(pts) < n)] + ball_points(rng, n) * R
+    return p, 0.5 * crossing_radius(n, density) * rng.uniform(0.8, 1.2, n)
+
+
+def filaments(rng, n, density):
+    strands = max(1, int(math.sqrt(n) / 4))
+    per = n // strands
+    ps = []
+    for _ in range(strands):
+        start = frustum_points(rng, 1)[0]
+        drift = rng.normal(size=3)
+        drift /= np.linalg.norm(drift)
+        steps = rng.normal(size=(per, 3)) * 0.02 + drift * 0.01
+        ps.append(start + np.cumsum(steps, axis=0))
+    p = np.concatenate(ps)
+    return p, np.full(len(p), 0.008) * rng.uniform(0.8, 1.2, len(p))
+
+
+def lognormal(rng, n, density):
+    r = np.exp(rng.normal(0.0, 1.6, n))
+    r *= crossing_radius(n, density) / math.sqrt(np.mean(r ** 2))
+    return frustum_points(rng, n), r
+
+
+def onion(rng, n, density):
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    radius = 1.0 + 0.8 * rng.integers(0, 5, n)
+    s = 0.5 * math.sqrt(8 * 16 / n)
+    return np.array([0.0, 0.0, -8.0]) + v * radius[:, None], s * rng.uniform(0.8, 1.2, n)
+
+
+def sheet(rng, n, density):
+    x = rng.uniform(-40, 40, n)
+    z = -rng.uniform(1.5, 80, n)
+    s = 0.03 * rng.uniform(0.8, 1.2, n)
+    return np.stack([x, s - 1.5, z], axis=1), s
+
+
 FAMILIES = {
     "uniform": uniform,
     "mixed": mixed,
@@ -153,6 +208,11 @@ FAMILIES = {
     "inside": lambda rng, n, d: clustered(rng, n, d, camera_inside=True),
     "islands": lambda rng, n, d: clumps(rng, n)[:2],
     "hugetiny": hugetiny,
+    "fractal": fractal,
+    "filaments": filaments,
+    "lognormal": lognormal,
+    "onion": onion,
+    "sheet": sheet,
 }
 
 
