@@ -552,14 +552,22 @@ pub(in crate::index::grid) struct FillScratch {
     /// Per part, its entries in each texel, then where it writes the next
     /// ([`TO_CUT`]).
     counts: Vec<Vec<u32>>,
-    /// The lists to be cut: each one's texel and its entries' places in
-    /// `listed`.
-    long: Vec<(usize, usize, usize)>,
+    /// The lists to be cut, in texel order.
+    long: Vec<ToCut>,
     /// The entries of the lists to be cut, packed as the buffer keeps them:
     /// the parts write their own places of each list at once.
     listed: Vec<AtomicU32>,
     /// Each entry's footprint ([`Footprint`]'s bits), at the same place.
     footprints: Vec<AtomicU8>,
+}
+
+/// A list to be cut: its texel, and its entries' places `from..to` in the
+/// scratch lists.
+#[derive(Clone, Copy, Debug)]
+struct ToCut {
+    texel: usize,
+    from: usize,
+    to: usize,
 }
 
 /// Set in a part's place for a texel ([`FillScratch::counts`]) where the
@@ -677,7 +685,11 @@ fn place_lists(scratch: &mut FillScratch, texels: usize, most: usize) -> Result<
             return Err(NoBuffer::Unsuited);
         }
         let (mut at, flag) = if n > MOST_LISTED {
-            long.push((k, to_cut, to_cut + n));
+            long.push(ToCut {
+                texel: k,
+                from: to_cut,
+                to: to_cut + n,
+            });
             to_cut += n;
             (to_cut - n, TO_CUT)
         } else {
@@ -723,9 +735,9 @@ fn write_entries(
 }
 
 /// How many entries a light's lists may take: at most `most` before the
-/// cut (past it, [`NoBuffer::Unsuited`]), and a number kept after it that
-/// `fits` the buffer's room (else [`NoBuffer::NoRoom`]), each packed by
-/// `steps`.
+/// cut (past it, [`NoBuffer::Unsuited`]), and a number kept after it that,
+/// with the lists cut, `fits` the buffer's room (`fits(kept, cut)`; else
+/// [`NoBuffer::NoRoom`]), each packed by `steps`.
 struct ListBounds<F> {
     most: usize,
     fits: F,
@@ -791,24 +803,23 @@ impl Split {
     }
 }
 
-/// Cuts each list of `long` (its texel, and its entries' places in
-/// `filled`) to its nearest [`MOST_LISTED`], written at its start in
-/// `kept`; returns for each, in the same order, a distance no sphere left
-/// out of it comes nearer than.
+/// Cuts each list of `long` (its entries in `filled`) to its nearest
+/// [`MOST_LISTED`], written at its start in `kept`; returns for each, in
+/// the same order, a distance no sphere left out of it comes nearer than.
 ///
 /// A packed entry orders as (step, sphere), so the cut keeps the spheres of
 /// the nearest steps, ties by position (an order independent of the
 /// threads'), and the first one left out has the least step of those left
 /// out: [`Steps::floor_of`] of it is below all their distances.
 fn cut_lists(
-    long: &[(usize, usize, usize)],
+    long: &[ToCut],
     filled: Filled,
     kept: Filled,
     starts: &[u32],
     steps: Steps,
 ) -> Vec<LeftOut> {
     (long.par_iter())
-        .map_init(Vec::new, |list, &(k, from, to)| {
+        .map_init(Vec::new, |list, &ToCut { texel: k, from, to }| {
             list.clear();
             list.extend((from..to).map(|at| filled.word(at)));
             list.select_nth_unstable(MOST_LISTED);
