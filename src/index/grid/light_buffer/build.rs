@@ -576,8 +576,8 @@ struct ToCut {
 const TO_CUT: u32 = 1 << 31;
 
 /// The texels' lists of the spheres `placements` place, cut at
-/// [`MOST_LISTED`]: their starts, the entries, and each texel's nearest
-/// distance left out. None past `most` entries before the cut.
+/// [`MOST_LISTED`]: their starts, the entries, and the cut lists' nearest
+/// distances left out. None past `most` entries before the cut.
 ///
 /// A counting sort, parallel over runs of spheres: each part counts its
 /// entries per texel, the counts become each part's places in each list,
@@ -585,7 +585,8 @@ const TO_CUT: u32 = 1 << 31;
 /// work on each thread wherever the spheres' texels lie. A list kept whole
 /// is written straight to its place in the buffer; a longer one goes to
 /// scratch, to be cut to its nearest entries in a pass of its own. Most
-/// lists are short, so most entries are written once.
+/// lists are short, so most entries are written once. A list keeps its
+/// order (the spheres', which is the grid's cell order) unless it is cut.
 ///
 /// Lists past their `bounds` are refused by the count alone, before any
 /// entry is written.
@@ -598,8 +599,9 @@ fn fill_lists(
     split: Split,
     scratch: &mut FillScratch,
 ) -> Result<Lists, NoBuffer> {
-    // Places carry the flag in their top bit.
-    if bounds.most >= TO_CUT as usize {
+    // Places carry the flag in their top bit, and cut lists name their
+    // texel in 32 bits.
+    if bounds.most >= TO_CUT as usize || texels >= TO_CUT as usize {
         return Err(NoBuffer::Unsuited);
     }
     let parts = placements.parts(split.parts);
@@ -685,13 +687,14 @@ fn place_lists(scratch: &mut FillScratch, texels: usize, most: usize) -> Result<
             return Err(NoBuffer::Unsuited);
         }
         let (mut at, flag) = if n > MOST_LISTED {
+            let from = to_cut;
+            to_cut += n;
             long.push(ToCut {
                 texel: k,
-                from: to_cut,
-                to: to_cut + n,
+                from,
+                to: to_cut,
             });
-            to_cut += n;
-            (to_cut - n, TO_CUT)
+            (from, TO_CUT)
         } else {
             (kept, 0)
         };
