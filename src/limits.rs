@@ -122,8 +122,13 @@ pub const DEFAULT_BODY_MEMORY: u64 = 256 * 1024 * 1024;
 /// it too. Room for a dozen of the largest images (4096 × 4096, 48 MiB of
 /// pixels and as much again encoded).
 pub const DEFAULT_MEMORY_BUDGET: u64 = 1024 * 1024 * 1024;
+/// Most bytes the index may hold per sphere once built (its copies of the
+/// spheres, levels and gate), beyond a floor of a few hundred KiB a level
+/// that small scenes reach: a level whose cells would list each sphere
+/// too many times gets coarser cells instead.
+pub const INDEX_BYTES_PER_SPHERE: usize = 64;
 /// What the index of a scene costs per sphere while it is built and used,
-/// for the memory budget: 39–63 bytes once built, and about as much again
+/// for the memory budget: at most [`INDEX_BYTES_PER_SPHERE`] once built, and about as much again
 /// for the pairs its build sorts (the 10^7-sphere scene peaked at some 240
 /// bytes a sphere beyond its text).
 pub const INDEX_BUILD_BYTES_PER_SPHERE: usize = 256;

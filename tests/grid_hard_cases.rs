@@ -142,3 +142,23 @@ fn duplicates_resolve_to_the_lowest_id() {
     assert!(hit.sphere <= 17);
     agree(&shapes, 300, -6.0, 6.0);
 }
+
+/// Spheres packed on nested shells, their cells barely wider than they
+/// are: the level outgrows the index's bytes per sphere at its own cells
+/// and is built coarser, within them, with brute force's answers still.
+#[test]
+fn spheres_packed_on_shells_within_the_index_bytes_per_sphere() {
+    let mut rng = Rng::new(5);
+    let n = 80_000;
+    let shapes: Vec<Ellipsoid<f32>> = (0..n)
+        .map(|i| {
+            let v = point(&mut rng, -1.0, 1.0).normalize_or(Vec3::X);
+            let radius = 1.0 + 0.5 * (i % 3) as f32;
+            Ellipsoid::new(v * radius, Vec3::splat(0.011 + 0.003 * rng.unit() as f32))
+        })
+        .collect();
+    let grid = VoxelHashGrid::new(&shapes);
+    let most = voxtrace::limits::INDEX_BYTES_PER_SPHERE * n;
+    assert!(grid.bytes() <= most, "{} bytes a sphere", grid.bytes() / n);
+    agree(&shapes, 400, -2.5, 2.5);
+}

@@ -28,6 +28,12 @@
 //!   ray does not cross many empty cells between two spheres;
 //! - the lattice planes lie at multiples of a power of two (exact in binary).
 //!
+//! A level whose cells, once its spheres are listed in them, would take more
+//! than its share of [`crate::limits::INDEX_BYTES_PER_SPHERE`] is listed
+//! again at twice the cell, until it fits ([`budget`]): spheres packed on a
+//! surface or in strands, whose cells hold few centres but list each
+//! sphere five or more times.
+//!
 //! A factor 4 keeps both the number of levels (three decades of radii give
 //! five) and the number of spheres per cell low: a factor 2 doubles the
 //! levels a ray walks, a factor 16 crowds the cells with small spheres. The
@@ -44,6 +50,8 @@
 //! - [`classes`]: the histogram of reaches and the size classes;
 //! - [`density`]: a class split into its crowded and its sparse spheres;
 //! - [`cell`]: each level's cell side, and parts that join a level;
+//! - [`distinct`]: the occupied cells counted from the centres, in a bitmap;
+//! - [`budget`]: a level's bytes, and its cell coarsened to fit them;
 //! - [`lattice`]: a level's cells, and finding those a sphere overlaps;
 //! - [`pairs`]: the (cell, sphere) pairs, packed and sorted by [`radix`];
 //! - [`compress`]: the sorted pairs numbered and compressed into tables.
@@ -52,27 +60,29 @@
 //! [`MERGE_FRACTION`]: classes::MERGE_FRACTION
 //! [`MAX_CENTRES_PER_CELL`]: cell::MAX_CENTRES_PER_CELL
 
+mod budget;
 mod cell;
 mod classes;
 mod compress;
 mod density;
+mod distinct;
 mod extent;
 mod lattice;
 mod octants;
 mod pairs;
 mod radix;
 
-use super::occupancy::Occupancy;
-use super::octant::LISTED_FOR_OCTANTS;
+use super::occupancy::{Occupancy, HEADINGS, SMALL_SCENE_GROUPS};
 use super::table::{BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS};
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
+use budget::{fit_budget, Listed};
 use cell::merge_equal_cells;
 use classes::{bin_of, histogram, members_by_class, size_classes};
 use density::split_by_density;
 use extent::Extents;
 use glam::DVec3;
-use lattice::{reciprocal, Lattice};
+use lattice::Lattice;
 use octants::reference_octants;
 use pairs::{sorted_cells, PairCode};
 use radix::sort_by_bits;
@@ -99,8 +109,10 @@ pub struct Built {
     pub bound: Vec<f64>,
 }
 
-/// The levels of `shapes` and the order of the grid's sphere copies.
-pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
+/// The levels of `shapes` and the order of the grid's sphere copies, the
+/// levels holding at most `level_bytes` bytes per sphere together with the
+/// gate (beyond a floor that small scenes reach: see [`build_level`]).
+pub fn levels<R: Real>(shapes: &[Ellipsoid<R>], level_bytes: usize) -> Built {
     let m = shapes
         .par_iter()
         .map(|s| (s.center.to_dvec3().abs() + s.scale.to_dvec3().abs()).max_element())
@@ -124,6 +136,10 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
         .filter(|ids| !ids.is_empty())
         .flat_map(|ids| split_by_density(&extents, ids));
     let by_cell = merge_equal_cells(&extents, parts);
+    // A scene of several levels may get a gate: a byte per heading for
+    // each of at most one group per sphere (see `gate`).
+    let gate_bytes = if by_cell.len() > 1 { HEADINGS } else { 0 };
+    let per_sphere = level_bytes.saturating_sub(gate_bytes) as f64;
     let mut order: Vec<u32> = short_ids;
     let short = (0..order.len() as u32).collect();
     let id_bits = u32::BITS - (shapes.len() as u32).leading_zeros();
@@ -135,7 +151,7 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>]) -> Built {
             if !ids.is_sorted() {
                 sort_by_bits(&mut ids, 0, id_bits);
             }
-            build_level(&extents, &ids, f64::from_bits(cell), &mut order)
+            build_level(&extents, &ids, f64::from_bits(cell), per_sphere, &mut order)
         })
         .collect();
     let bound = (&extents.reach, &extents.slack)
@@ -164,8 +180,17 @@ fn short_list(members: &mut [Vec<u32>]) -> Vec<u32> {
 }
 
 /// Builds one level over `ids`, appending them to `order` as described in
-/// [`compress::number_in_cell_order`].
-fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u32>) -> Level {
+/// [`compress::number_in_cell_order`]. Its cell is coarsened until it is
+/// estimated to hold at most `per_sphere` bytes per sphere, or as much as
+/// a level of [`SMALL_SCENE_GROUPS`] spheres if it holds fewer: what its
+/// smallest proximity clouds take ([`budget`]).
+fn build_level(
+    extents: &Extents,
+    ids: &[u32],
+    mut cell: f64,
+    per_sphere: f64,
+    order: &mut Vec<u32>,
+) -> Level {
     let (lo, hi, slack) = ids
         .par_iter()
         .map(|&id| {
@@ -179,26 +204,21 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
     while (hi - lo).max_element() / cell > MAX_CELLS_PER_AXIS {
         cell *= 2.0;
     }
-    // The lattice is anchored at a multiple of the cell side.
-    let lo = (lo / cell).floor() * cell;
-    let dims = ((hi - lo) / cell).floor().as_i64vec3() + 1;
-    let lattice = Lattice {
-        origin: lo,
-        per_cell: reciprocal(cell),
-        last: dims - 1,
-    };
-    let code = PairCode::new(dims.to_array(), ids.len());
-    let cell_box = |id: u32| {
-        let id = id as usize;
-        lattice.cell_box(extents.center[id], extents.reach[id])
-    };
-    let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
-        sorted_cells::<u64>(&code, ids, cell_box, order)
-    } else {
-        sorted_cells::<u128>(&code, ids, cell_box, order)
-    };
-    let occupied = cell_start.len().saturating_sub(1);
-    let octants = if candidates.len() >= LISTED_FOR_OCTANTS * occupied {
+    // A small level may hold what one of a level's smallest clouds would.
+    let budget = per_sphere * ids.len().max(SMALL_SCENE_GROUPS as usize) as f64;
+    let first = order.len();
+    let listed = fit_budget(cell, budget, ids.len(), |cell| {
+        order.truncate(first);
+        list_spheres(extents, ids, Lattice::over(lo, hi, cell), order)
+    });
+    let Listed {
+        lattice,
+        blocks,
+        table,
+        cell_start,
+        candidates,
+    } = listed;
+    let octants = if Listed::keeps_octants(&cell_start, &candidates) {
         let level_order = (order.as_slice(), order.len() - ids.len());
         reference_octants(
             &lattice,
@@ -211,14 +231,15 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
     } else {
         Vec::new()
     };
+    let (cell, dims) = (lattice.cell(), lattice.dims());
     Level {
         cell,
-        per_cell: reciprocal(cell),
-        origin: lo,
-        far: (lo + dims.as_dvec3() * cell).to_array(),
+        per_cell: lattice.per_cell,
+        origin: lattice.origin,
+        far: (lattice.origin + dims.as_dvec3() * cell).to_array(),
         dims: dims.to_array(),
         slack,
-        table: BlockTable::new(&blocks),
+        table,
         occupancy: Occupancy::new(
             dims.to_array(),
             ids.len(),
@@ -227,6 +248,28 @@ fn build_level(extents: &Extents, ids: &[u32], mut cell: f64, order: &mut Vec<u3
         cell_start,
         ids: candidates,
         octants,
+    }
+}
+
+/// The spheres `ids` listed in the cells of `lattice` their boxes overlap,
+/// numbered in cell order onto `order`.
+fn list_spheres(extents: &Extents, ids: &[u32], lattice: Lattice, order: &mut Vec<u32>) -> Listed {
+    let code = PairCode::new(lattice.dims().to_array(), ids.len());
+    let cell_box = |id: u32| {
+        let id = id as usize;
+        lattice.cell_box(extents.center[id], extents.reach[id])
+    };
+    let (blocks, cell_start, candidates) = if code.bits() <= u64::BITS {
+        sorted_cells::<u64>(&code, ids, cell_box, order)
+    } else {
+        sorted_cells::<u128>(&code, ids, cell_box, order)
+    };
+    Listed {
+        table: BlockTable::new(&blocks),
+        lattice,
+        blocks,
+        cell_start,
+        candidates,
     }
 }
 
@@ -257,11 +300,45 @@ mod tests {
             let c = Vec3::new((i % 20) as f32, (i / 20 % 10) as f32, -((i / 200) as f32));
             shapes.push(Ellipsoid::new(c * 0.1, Vec3::splat(0.01)));
         }
-        let built = levels(&shapes);
+        let built = levels(&shapes, usize::MAX);
         assert_eq!(built.short.len(), 1);
         assert_eq!(built.order[built.short[0] as usize], 0);
         assert_eq!(built.levels.len(), 1);
         // The floor's size did not widen the small spheres' cells.
         assert!(built.levels[0].cell <= 0.125, "{}", built.levels[0].cell);
+    }
+
+    /// Spheres packed on a shell, their cells barely wider than they are:
+    /// listed in five cells or more each, the level outgrows its budget,
+    /// and coarser cells bring it back within.
+    #[test]
+    fn a_level_over_its_bytes_per_sphere_gets_coarser_cells_within_them() {
+        use crate::rng::Rng;
+        use glam::Vec3;
+        let mut rng = Rng::new(3);
+        let n = 60_000;
+        let shapes: Vec<Ellipsoid<f32>> = (0..n)
+            .map(|_| {
+                let v = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
+                let on_shell = (v - 0.5).normalize_or(Vec3::X) * 2.0;
+                Ellipsoid::new(on_shell, Vec3::splat(0.011 + 0.003 * rng.unit() as f32))
+            })
+            .collect();
+        let bytes = |built: &Built| built.levels.iter().map(Level::bytes).sum::<usize>();
+        let free = levels(&shapes, usize::MAX);
+        let budget = 24;
+        assert!(bytes(&free) > budget * n, "{} per sphere", bytes(&free) / n);
+        let fitted = levels(&shapes, budget);
+        assert_eq!(fitted.levels.len(), 1);
+        assert!(
+            bytes(&fitted) <= budget * n,
+            "{} per sphere",
+            bytes(&fitted) / n
+        );
+        assert!(fitted.levels[0].cell > free.levels[0].cell);
+        // The same spheres, each once, in either order.
+        let mut ids = fitted.order.clone();
+        ids.sort_unstable();
+        assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
     }
 }

@@ -201,6 +201,12 @@ impl Tests for Uncounted {
 }
 
 impl<R: Real> VoxelHashGrid<R> {
+    /// What the levels may hold per sphere: the index's bytes per sphere
+    /// less its copy of the sphere in f32, as renders keep it (a grid in
+    /// f64, as `report`'s reference renders keep it, holds twice that copy).
+    const LEVEL_BYTES_PER_SPHERE: usize =
+        crate::limits::INDEX_BYTES_PER_SPHERE.saturating_sub(std::mem::size_of::<Candidate<f32>>());
+
     /// Builds the grid in parallel on the current rayon pool.
     pub fn new(shapes: &[Ellipsoid<R>]) -> Self {
         let build::Built {
@@ -208,7 +214,7 @@ impl<R: Real> VoxelHashGrid<R> {
             short,
             order,
             bound,
-        } = build::levels(shapes);
+        } = build::levels(shapes, Self::LEVEL_BYTES_PER_SPHERE);
         let spheres = order
             .par_iter()
             .map(|&id| Candidate {

@@ -87,19 +87,7 @@ impl Occupancy {
         spheres: usize,
         blocks: impl Iterator<Item = BlockKey>,
     ) -> Self {
-        let budget = (spheres as i64)
-            .saturating_mul(GROUPS_PER_SPHERE)
-            .clamp(SMALL_SCENE_GROUPS, MAX_GROUPS);
-        // Groups as fine as a block where the budget allows: around a lone
-        // sphere (dust between clumps) the distances then reach to within a
-        // block of it, where region-sized groups would call its whole region
-        // occupied and leave the walk to cross it block by block.
-        let mut shift = BLOCK_SHIFT;
-        let groups = |shift: u32| cell_dims.map(|d| ((d - 1) >> shift) + 1);
-        while groups(shift).iter().product::<i64>() > budget {
-            shift += 1;
-        }
-        let dims = groups(shift);
+        let (shift, dims) = groups(cell_dims, spheres);
         let count = dims.iter().product::<i64>() as usize;
         let mut occupied = vec![u8::MAX; count];
         let coarser = shift - BLOCK_SHIFT;
@@ -122,6 +110,12 @@ impl Occupancy {
         Occupancy { shift, dims, ahead }
     }
 
+    /// The bytes [`Occupancy::new`] takes for the same level.
+    pub fn bytes_for(cell_dims: [i64; 3], spheres: usize) -> usize {
+        let (_, dims) = groups(cell_dims, spheres);
+        HEADINGS * dims.iter().product::<i64>() as usize
+    }
+
     #[inline(always)]
     fn index(&self, g: [i64; 3]) -> usize {
         ((g[2] * self.dims[1] + g[1]) * self.dims[0] + g[0]) as usize
@@ -140,6 +134,24 @@ impl Occupancy {
     pub fn bytes(&self) -> usize {
         self.ahead.len()
     }
+}
+
+/// The groups of a level of `spheres` spheres in `cell_dims` cells a side:
+/// cells per group side as a power of two, and groups per axis.
+fn groups(cell_dims: [i64; 3], spheres: usize) -> (u32, [i64; 3]) {
+    let budget = (spheres as i64)
+        .saturating_mul(GROUPS_PER_SPHERE)
+        .clamp(SMALL_SCENE_GROUPS, MAX_GROUPS);
+    // Groups as fine as a block where the budget allows: around a lone
+    // sphere (dust between clumps) the distances then reach to within a
+    // block of it, where region-sized groups would call its whole region
+    // occupied and leave the walk to cross it block by block.
+    let mut shift = BLOCK_SHIFT;
+    let per_axis = |shift: u32| cell_dims.map(|d| ((d - 1) >> shift) + 1);
+    while per_axis(shift).iter().product::<i64>() > budget {
+        shift += 1;
+    }
+    (shift, per_axis(shift))
 }
 
 /// From `occupied`, 0 (occupied) or 255 (empty) per group, writes into

@@ -2,6 +2,7 @@
 //! doubled while the cells stay sparse, and parts whose sides come out no
 //! finer than a level already made joining it.
 
+use super::distinct::Distinct;
 use super::extent::Extents;
 use super::lattice::reciprocal;
 use crate::index::grid::walk::floor_to_int;
@@ -21,54 +22,33 @@ const MAX_OCCUPANCY_BITS: usize = 1 << 22;
 
 /// The mean number of sphere centres per occupied cell of side `cell`.
 ///
-/// The occupied cells are counted by linear counting (Whang et al. 1990):
-/// hash every centre's cell into a bitmap of m bits; with z bits left clear,
-/// `m·ln(m/z)` estimates the number of distinct cells, within a few percent
-/// while they number less than a few times m. The bitmap holds four bits
-/// per centre (a power of two, 512 B to 512 KiB), so the cells, never more
-/// than the centres, stay well under m up to 2²⁰ centres, and a small scene
-/// neither zeroes nor keeps a large bitmap.
+/// The occupied cells are counted by linear counting ([`Distinct`]) in a
+/// bitmap of four bits per centre (a power of two, 512 B to 512 KiB), so
+/// the cells, never more than the centres, stay well under its size up to
+/// 2²⁰ centres, and a small scene neither zeroes nor keeps a large bitmap.
 fn centres_per_occupied_cell(extents: &Extents, ids: &[u32], cell: f64) -> f64 {
     let bitmap_bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
         .next_power_of_two()
         .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
-    let (words, shift) = (bitmap_bits / 64, 64 - bitmap_bits.trailing_zeros());
     let per_cell = reciprocal(cell);
     // One bitmap per thread's share, not per small chunk: a bitmap may be 512 KiB.
     let share = ids
         .len()
         .div_ceil(2 * rayon::current_num_threads())
         .max(1 << 16);
-    let bitmap = ids
+    let occupied = ids
         .par_chunks(share)
         .map(|chunk| {
-            let mut bits = vec![0u64; words];
+            let mut seen = Distinct::with_bits(bitmap_bits);
             for &id in chunk {
                 let p = extents.center[id as usize] * per_cell;
-                let c = [floor_to_int(p.x), floor_to_int(p.y), floor_to_int(p.z)];
-                let key = (c[0] as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
-                    ^ (c[1] as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
-                    ^ (c[2] as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
-                let h = (key ^ key >> 29).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> shift;
-                bits[h as usize / 64] |= 1 << (h % 64);
+                seen.insert([floor_to_int(p.x), floor_to_int(p.y), floor_to_int(p.z)]);
             }
-            bits
+            seen
         })
-        .reduce(
-            || vec![0u64; words],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(x, y)| *x |= y);
-                a
-            },
-        );
-    let clear = bitmap
-        .iter()
-        .map(|w| w.count_zeros() as f64)
-        .sum::<f64>()
-        .max(1.0);
-    let m = bitmap_bits as f64;
-    let occupied = m * (m / clear).ln();
-    ids.len() as f64 / occupied.max(1.0)
+        .reduce(|| Distinct::with_bits(bitmap_bits), Distinct::union)
+        .estimate();
+    ids.len() as f64 / occupied
 }
 
 /// Parts (coarsest first) whose chosen cells come out no finer than a

@@ -25,6 +25,27 @@ pub(super) struct Lattice {
 }
 
 impl Lattice {
+    /// The lattice of cells of side `cell` (a power of two) over the box
+    /// `lo..=hi`, anchored at a multiple of the side.
+    pub(super) fn over(lo: DVec3, hi: DVec3, cell: f64) -> Lattice {
+        let origin = (lo / cell).floor() * cell;
+        Lattice {
+            origin,
+            per_cell: reciprocal(cell),
+            last: ((hi - origin) / cell).floor().as_i64vec3(),
+        }
+    }
+
+    /// The side of a cell.
+    pub(super) fn cell(&self) -> f64 {
+        1.0 / self.per_cell
+    }
+
+    /// Cells per axis.
+    pub(super) fn dims(&self) -> I64Vec3 {
+        self.last + 1
+    }
+
     /// The lattice of half cells: the same origin, the side halved (so the
     /// scaling doubles, exactly), twice the cells per axis.
     pub(super) fn halves(&self) -> Lattice {
