@@ -3,6 +3,7 @@
 
 mod camera;
 mod deadline;
+mod light_buffers;
 mod region;
 mod rules;
 mod shading;
@@ -40,8 +41,8 @@ pub enum SpecularModel {
 pub enum IndexKind {
     /// The multi-resolution voxel hash grid, with a light buffer per light
     /// (as many as [`crate::limits::LIGHT_BUFFER_BYTES_PER_SPHERE`] allows,
-    /// for renders of at least as many eye samples as spheres) that answers
-    /// shadow rays toward it.
+    /// for renders whose eye rays hit at least half as many times as there
+    /// are spheres) that answers shadow rays toward it.
     #[default]
     Grid,
     /// The grid alone: shadow rays walk it too (for measuring the buffers).
@@ -195,12 +196,10 @@ pub fn render_in<R: Real>(
     check_options(options)?;
     let started = Instant::now();
     let shapes = shapes_of::<R>(scene);
-    let lights = if light_buffers_pay(scene, options) {
-        light_positions::<R>(scene)
-    } else {
-        Vec::new()
+    let index = match options.index {
+        IndexKind::Grid => Box::new(grid_for(scene, options, &shapes)),
+        kind => build_index(&shapes, &[], kind),
     };
-    let index = build_index(&shapes, &lights, options.index);
     render_with(
         scene,
         &shapes,
@@ -221,16 +220,23 @@ fn shapes_of<R: Real>(scene: &Scene) -> Vec<Ellipsoid<R>> {
         .collect()
 }
 
-/// Whether the index should build light buffers for this render: when it
-/// traces at least as many eye samples as the scene has spheres. A buffer
-/// costs about as much to build per sphere as it saves per shadow ray
-/// (docs/index.md: at 10⁶ spheres and 1024² pixels the three lights' buffers
-/// take 0.3 s and save 0.5–1.0 s of shadow rays; at 10⁷ spheres they take
-/// 7.8 s and save 3.6 s), and a render casts about one shadow ray per light
-/// per eye hit.
-fn light_buffers_pay(scene: &Scene, options: &RenderOptions) -> bool {
-    let samples = region_of(scene, options).map_or(0, |r| r.pixels()) * u64::from(options.spp);
-    samples >= scene.spheres.len() as u64
+/// The grid over `shapes` for a render of `scene`, with a light buffer per
+/// light where the buffers pay for it ([`light_buffers::pay`]).
+fn grid_for<R: Real>(
+    scene: &Scene,
+    options: &RenderOptions,
+    shapes: &[Ellipsoid<R>],
+) -> VoxelHashGrid<R> {
+    let grid = VoxelHashGrid::new(shapes);
+    let Ok(region) = region_of(scene, options) else {
+        // Refused when the render starts.
+        return grid;
+    };
+    let samples = region.pixels() * u64::from(options.spp);
+    match light_buffers::pay(scene, region, samples, &grid) {
+        true => grid.with_lights(&light_positions::<R>(scene)),
+        false => grid,
+    }
 }
 
 /// The scene's light positions in the precision `R`, as shading casts
@@ -747,11 +753,11 @@ mod tests {
         assert_eq!(stats.in_packets, stats.rays);
     }
 
-    /// Light buffers are built where the render traces at least as many eye
-    /// samples as there are spheres, and the images agree either way.
+    /// Light buffers are built where the render's eye hits reach half the
+    /// spheres ([`light_buffers`]), and the images agree either way.
     #[test]
-    fn light_buffers_are_built_where_the_samples_outnumber_the_spheres() {
-        // A grid of small spheres (a few spheres would all be the grid's short list).
+    fn light_buffers_are_built_where_the_eye_hits_reach_half_the_spheres() {
+        // A wall of spheres filling the view (a few spheres would all be the grid's short list).
         let mut text = String::from(
             "NEAR 1\nLEFT -1\nRIGHT 1\nBOTTOM -1\nTOP 1\nRES 4 4\nBACK 0 0 0\nAMBIENT 0.2 0.2 0.2\n\
              LIGHT a 0 10 -5 1 1 1\nLIGHT b -10 0 0 0.5 0.5 0.5\n",
@@ -759,14 +765,13 @@ mod tests {
         for i in 0..300 {
             let (x, y, z) = (i % 10, i / 10 % 10, i / 100);
             text += &format!(
-                "SPHERE s{i} {} {} {} 0.1 0.1 0.1 0.5 0.5 0.5 0.2 0.6 0.4 0.3 40\n",
-                x as f64 * 0.3 - 1.4,
-                y as f64 * 0.3 - 1.4,
-                -4.0 - z as f64 * 0.3
+                "SPHERE s{i} {} {} {} 0.45 0.45 0.45 0.5 0.5 0.5 0.2 0.6 0.4 0.3 40\n",
+                x as f64 * 0.9 - 4.05,
+                y as f64 * 0.9 - 4.05,
+                -4.0 - z as f64 * 0.9
             );
         }
         let mut scene = crate::scene::parse(text).unwrap();
-        let spheres = scene.spheres.len() as u32;
         let lights = scene.lights.len();
         let render = |scene: &Scene, spp| {
             let options = RenderOptions {
@@ -775,7 +780,8 @@ mod tests {
             };
             render_scene(scene, &options, &|_| {}).unwrap()
         };
-        (scene.camera.width, scene.camera.height) = (spheres - 1, 1);
+        // 100 samples, then 200 (most of them hits), against 150 eye hits wanted.
+        (scene.camera.width, scene.camera.height) = (10, 10);
         let (few, more) = (render(&scene, 1), render(&scene, 2));
         assert_eq!(few.stats.light_buffers.lights, 0);
         assert_eq!(more.stats.light_buffers.lights, lights);
