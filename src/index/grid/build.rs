@@ -207,9 +207,10 @@ fn build_level(
     // A small level may hold what one of a level's smallest clouds would.
     let budget = per_sphere * ids.len().max(SMALL_SCENE_GROUPS as usize) as f64;
     let first = order.len();
-    let listed = fit_budget(cell, budget, ids.len(), |cell| {
+    let lattice = |cell: f64| Lattice::over(lo, hi, cell);
+    let listed = fit_budget(extents, ids, cell, budget, lattice, |lattice| {
         order.truncate(first);
-        list_spheres(extents, ids, Lattice::over(lo, hi, cell), order)
+        list_spheres(extents, ids, lattice, order)
     });
     let Listed {
         lattice,
@@ -340,5 +341,56 @@ mod tests {
         let mut ids = fitted.order.clone();
         ids.sort_unstable();
         assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
+    }
+
+    /// The count before listing calls a level over its budget only where
+    /// its listing, counted exactly, is over it: on packed shells and on
+    /// scattered spheres, at cells from about their size to 16 times it.
+    #[test]
+    fn a_level_is_surely_over_its_budget_only_where_its_listing_is() {
+        use crate::rng::Rng;
+        use glam::Vec3;
+        let mut rng = Rng::new(8);
+        let shell = |rng: &mut Rng| {
+            let v = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
+            (v - 0.5).normalize_or(Vec3::X) * 2.0
+        };
+        let (mut over, mut under) = (0, 0);
+        for packed in [true, false] {
+            let shapes: Vec<Ellipsoid<f32>> = (0..40_000)
+                .map(|_| {
+                    let at = match packed {
+                        true => shell(&mut rng),
+                        false => {
+                            Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32) * 6.0
+                        }
+                    };
+                    Ellipsoid::new(at, Vec3::splat(0.011 + 0.003 * rng.unit() as f32))
+                })
+                .collect();
+            let extents = Extents::of(&shapes, 10.0);
+            let ids: Vec<u32> = (0..shapes.len() as u32).collect();
+            let (lo, hi) = (DVec3::splat(-3.0), DVec3::splat(7.0));
+            for doublings in 0..5 {
+                let cell = 0.03125 * f64::from(1 << doublings);
+                let lattice = || Lattice::over(lo, hi, cell);
+                let bytes =
+                    list_spheres(&extents, &ids, lattice(), &mut Vec::new()).bytes(ids.len());
+                for per_sphere in [8.0, 16.0, 24.0, 32.0, 48.0] {
+                    let budget = per_sphere * ids.len() as f64;
+                    if budget::surely_over(&extents, &ids, &lattice(), budget) {
+                        assert!(
+                            bytes as f64 > budget,
+                            "cell {cell}, {per_sphere} a sphere: {bytes}"
+                        );
+                        over += 1;
+                    } else if bytes as f64 <= budget {
+                        under += 1;
+                    }
+                }
+            }
+        }
+        // Both answers occur, so the test tells them apart.
+        assert!(over > 0 && under > 0, "{over} over, {under} under");
     }
 }
