@@ -337,6 +337,20 @@ mod tests {
             bytes(&fitted) / n
         );
         assert!(fitted.levels[0].cell > free.levels[0].cell);
+        // The bytes the budget counts are those the level holds once built.
+        let level = &fitted.levels[0];
+        let lattice = Lattice {
+            origin: level.origin,
+            per_cell: level.per_cell,
+            last: glam::I64Vec3::from_array(level.dims) - 1,
+        };
+        let m = (shapes.iter())
+            .map(|s| (s.center.to_dvec3().abs() + s.scale.to_dvec3().abs()).max_element())
+            .fold(0.0, f64::max);
+        let extents = Extents::of(&shapes, m);
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let listed = list_spheres(&extents, &ids, lattice, &mut Vec::new());
+        assert_eq!(listed.bytes(n), level.bytes());
         // The same spheres, each once, in either order.
         let mut ids = fitted.order.clone();
         ids.sort_unstable();

@@ -60,10 +60,10 @@ impl Listed {
     }
 }
 
-/// The level `list(cell)` returns for `cell`, or for `cell` doubled until
-/// it holds at most `budget` bytes (at most [`MOST_DOUBLINGS`] times: the
-/// last listed if none does). Cells the level of `ids` is [`surely_over`]
-/// the budget at are passed over without listing it.
+/// The level of `ids` that `list` lists over the lattice `lattice(cell)`,
+/// or over that of `cell` doubled until it holds at most `budget` bytes (at
+/// most [`MOST_DOUBLINGS`] times: the last listed if none does). Cells the
+/// level is [`surely_over`] the budget at are passed over without listing.
 pub(super) fn fit_budget(
     extents: &Extents,
     ids: &[u32],
