@@ -66,6 +66,13 @@ impl Deadline {
         self.at
     }
 
+    /// Whether it has come: its instant is past, or its token cancelled.
+    /// Reads the clock: for work before the render's own stop flag runs.
+    pub fn has_come(&self) -> bool {
+        self.at.is_some_and(|at| Instant::now() >= at)
+            || self.cancel.as_ref().is_some_and(CancelToken::is_cancelled)
+    }
+
     /// Also stops once `token` is cancelled.
     pub fn or_cancel(self, token: &CancelToken) -> Self {
         Deadline {

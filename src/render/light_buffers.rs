@@ -12,9 +12,13 @@
 //!
 //! The hits are estimated from a sparse lattice of eye rays traced against
 //! the grid before the buffers are built: a few thousand rays, a fraction
-//! of what one light's buffer costs.
+//! of what one light's buffer costs. They are traced before the render's
+//! stop flag runs, so each checks the render's deadline itself: a scene
+//! whose rays are slow stops the estimate at the deadline, one ray late at
+//! most, and the render that follows reports it.
 
 use super::region::Region;
+use super::Deadline;
 use super::PixelSampler;
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
 use crate::index::{SphereIndex, VoxelHashGrid};
@@ -29,25 +33,34 @@ const PROBE_RAYS: u64 = 4_096;
 const PROBE_SHARE: u64 = 4;
 
 /// Whether the light buffers pay for a render of `samples` samples over
-/// `region` of `scene`, whose spheres `grid` holds.
+/// `region` of `scene`, whose spheres `grid` holds, to stop at `deadline`.
 pub(super) fn pay<R: Real>(
     scene: &Scene,
     region: Region,
     samples: u64,
     grid: &VoxelHashGrid<R>,
+    deadline: Option<&Deadline>,
 ) -> bool {
     let wanted = HITS_PER_SPHERE * scene.spheres.len() as f64;
     // Even if every sample hit, too few.
     if (samples as f64) < wanted {
         return false;
     }
-    samples as f64 * eye_hit_fraction(scene, region, grid) >= wanted
+    let Some(fraction) = eye_hit_fraction(scene, region, grid, deadline) else {
+        return false;
+    };
+    samples as f64 * fraction >= wanted
 }
 
 /// The share of the corner eye rays of a lattice of `region`'s pixels
 /// that hit a sphere beyond the image plane, as the renderer's first hit
-/// does.
-fn eye_hit_fraction<R: Real>(scene: &Scene, region: Region, grid: &VoxelHashGrid<R>) -> f64 {
+/// does; None if `deadline` comes first.
+fn eye_hit_fraction<R: Real>(
+    scene: &Scene,
+    region: Region,
+    grid: &VoxelHashGrid<R>,
+    deadline: Option<&Deadline>,
+) -> Option<f64> {
     let probes = PROBE_RAYS.min(region.pixels() / PROBE_SHARE).max(1);
     // Every `stride`-th pixel of every `stride`-th row.
     let stride = ((region.pixels() as f64 / probes as f64).sqrt().ceil() as u32).max(1);
@@ -55,18 +68,22 @@ fn eye_hit_fraction<R: Real>(scene: &Scene, region: Region, grid: &VoxelHashGrid
     let rows: Vec<u32> = region.rows().step_by(stride as usize).collect();
     let sampler = PixelSampler::new(&scene.camera, 1);
     let eye = V3::<R>::from_dvec3(glam::DVec3::ZERO);
-    let hits: usize = (rows.par_iter())
+    let come = || deadline.is_some_and(Deadline::has_come);
+    let hits: Option<usize> = (rows.par_iter())
         .map(|&y| {
-            (columns.iter())
-                .filter(|&&x| {
-                    let dir = sampler.direction(f64::from(x), f64::from(y));
-                    let ray = Ray::new(eye, V3::<R>::from_dvec3(dir));
-                    grid.closest_hit(&ray, R::one(), R::infinity()).is_some()
-                })
-                .count()
+            let mut hits = 0;
+            for &x in &columns {
+                if come() {
+                    return None;
+                }
+                let dir = sampler.direction(f64::from(x), f64::from(y));
+                let ray = Ray::new(eye, V3::<R>::from_dvec3(dir));
+                hits += usize::from(grid.closest_hit(&ray, R::one(), R::infinity()).is_some());
+            }
+            Some(hits)
         })
         .sum();
-    hits as f64 / (rows.len() * columns.len()).max(1) as f64
+    Some(hits? as f64 / (rows.len() * columns.len()).max(1) as f64)
 }
 
 #[cfg(test)]
@@ -111,6 +128,27 @@ mod tests {
         // The same spheres, tiny, spread over nine times the view: few hit.
         let sparse = lattice_scene(64, 1024, 0.01, 3.0);
         assert_eq!(buffered(&sparse), 0);
+    }
+
+    /// The estimate stops at the render's deadline: a render whose
+    /// deadline has come gets no buffers, and says it timed out.
+    #[test]
+    fn a_deadline_come_stops_the_estimate() {
+        let full = lattice_scene(64, 1024, 0.2, 1.0);
+        let grid = VoxelHashGrid::new(&crate::render::shapes_of::<f32>(&full));
+        let region = Region::whole(64, 64);
+        assert!(pay(&full, region, 4096, &grid, None));
+        let come = Deadline::at(std::time::Instant::now());
+        assert!(!pay(&full, region, 4096, &grid, Some(&come)));
+        let options = RenderOptions {
+            deadline: Some(come),
+            ..RenderOptions::default()
+        };
+        let rendered = crate::render::render_scene(&full, &options, &|_| {});
+        assert!(matches!(
+            rendered,
+            Err(crate::render::RenderError::TimedOut)
+        ));
     }
 
     #[test]

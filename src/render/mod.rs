@@ -233,7 +233,7 @@ fn grid_for<R: Real>(
         return grid;
     };
     let samples = region.pixels() * u64::from(options.spp);
-    match light_buffers::pay(scene, region, samples, &grid) {
+    match light_buffers::pay(scene, region, samples, &grid, options.deadline.as_ref()) {
         true => grid.with_lights(&light_positions::<R>(scene)),
         false => grid,
     }
