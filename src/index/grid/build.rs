@@ -180,10 +180,10 @@ fn short_list(members: &mut [Vec<u32>]) -> Vec<u32> {
 }
 
 /// Builds one level over `ids`, appending them to `order` as described in
-/// [`compress::number_in_cell_order`]. Its cell is coarsened until it is
-/// estimated to hold at most `per_sphere` bytes per sphere, or as much as
-/// a level of [`SMALL_SCENE_GROUPS`] spheres if it holds fewer: what its
-/// smallest proximity clouds take ([`budget`]).
+/// [`compress::number_in_cell_order`]. Its cell is doubled until it holds
+/// at most `per_sphere` bytes per sphere ([`budget`]), or, if it holds
+/// fewer than [`SMALL_SCENE_GROUPS`] spheres, as many bytes as a level of
+/// that many may: its proximity clouds alone take that much.
 fn build_level(
     extents: &Extents,
     ids: &[u32],
@@ -204,7 +204,7 @@ fn build_level(
     while (hi - lo).max_element() / cell > MAX_CELLS_PER_AXIS {
         cell *= 2.0;
     }
-    // A small level may hold what one of a level's smallest clouds would.
+    // A small level may hold what a level of SMALL_SCENE_GROUPS spheres may.
     let budget = per_sphere * ids.len().max(SMALL_SCENE_GROUPS as usize) as f64;
     let first = order.len();
     let lattice = |cell: f64| Lattice::over(lo, hi, cell);
