@@ -87,7 +87,7 @@ pub(super) fn fit_budget(
 }
 
 /// Bits of the bitmap that counts a level's cells before listing, per
-/// reference (a power of two), at the least and most.
+/// reference expected (a power of two), at the least and most.
 const BITS_PER_REFERENCE: usize = 1;
 const MIN_BITS: usize = 1 << 12;
 const MAX_BITS: usize = 1 << 25;
@@ -124,33 +124,32 @@ pub(super) fn surely_over(extents: &Extents, ids: &[u32], lattice: &Lattice, bud
     if 4.0 * expected + clouds < SCREEN * budget {
         return false;
     }
-    let references = ids
-        .par_iter()
-        .map(|&id| {
-            let (lo, hi) = cell_box(id);
-            (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product::<u64>()
-        })
-        .sum::<u64>() as f64;
-    let bits = (BITS_PER_REFERENCE * references as usize).clamp(MIN_BITS, MAX_BITS);
+    // One pass: the references exactly, the cells and blocks by linear
+    // counting in bitmaps sized for the references expected.
+    let bits = (BITS_PER_REFERENCE * expected as usize).clamp(MIN_BITS, MAX_BITS);
     let share = ids
         .len()
         .div_ceil(2 * rayon::current_num_threads())
         .max(1 << 16);
-    let empty = || [0; 2].map(|_| Distinct::with_bits(bits));
-    let [cells, blocks] = ids
+    let empty = || (0, [0; 2].map(|_| Distinct::with_bits(bits)));
+    let (references, [cells, blocks]) = ids
         .par_chunks(share)
         .map(|chunk| {
-            let [mut cells, mut blocks] = empty();
+            let (mut references, [mut cells, mut blocks]) = empty();
             for &id in chunk {
                 let (lo, hi) = cell_box(id);
+                references += (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product::<u64>();
                 each_in(lo, hi, |c| cells.insert(c));
                 let block = |c: [i64; 3]| c.map(|v| v >> BLOCK_SHIFT);
                 each_in(block(lo), block(hi), |b| blocks.insert(b));
             }
-            [cells, blocks]
+            (references, [cells, blocks])
         })
-        .reduce(empty, |[a, b], [c, d]| [a.union(c), b.union(d)])
-        .map(|seen| seen.estimate());
+        .reduce(empty, |(r, [a, b]), (s, [c, d])| {
+            (r + s, [a.union(c), b.union(d)])
+        });
+    let references = references as f64;
+    let [cells, blocks] = [cells, blocks].map(|seen| seen.estimate());
     // Octants only where they are kept however far off the count is.
     let octants = match references >= LISTED_FOR_OCTANTS as f64 * cells / COUNT_MARGIN {
         true => references,
