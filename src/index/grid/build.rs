@@ -309,22 +309,32 @@ mod tests {
         assert!(built.levels[0].cell <= 0.125, "{}", built.levels[0].cell);
     }
 
+    /// `n` spheres of radii 0.011–0.014, on a shell of radius 2 about the
+    /// origin (packed: their cells barely wider than they are) or scattered
+    /// through the cube from 0 to 6.
+    fn small_spheres(seed: u64, n: usize, packed: bool) -> Vec<Ellipsoid<f32>> {
+        use crate::rng::Rng;
+        use glam::Vec3;
+        let mut rng = Rng::new(seed);
+        (0..n)
+            .map(|_| {
+                let v = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
+                let at = match packed {
+                    true => (v - 0.5).normalize_or(Vec3::X) * 2.0,
+                    false => v * 6.0,
+                };
+                Ellipsoid::new(at, Vec3::splat(0.011 + 0.003 * rng.unit() as f32))
+            })
+            .collect()
+    }
+
     /// Spheres packed on a shell, their cells barely wider than they are:
     /// listed in five cells or more each, the level outgrows its budget,
     /// and coarser cells bring it back within.
     #[test]
     fn a_level_over_its_bytes_per_sphere_gets_coarser_cells_within_them() {
-        use crate::rng::Rng;
-        use glam::Vec3;
-        let mut rng = Rng::new(3);
         let n = 60_000;
-        let shapes: Vec<Ellipsoid<f32>> = (0..n)
-            .map(|_| {
-                let v = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
-                let on_shell = (v - 0.5).normalize_or(Vec3::X) * 2.0;
-                Ellipsoid::new(on_shell, Vec3::splat(0.011 + 0.003 * rng.unit() as f32))
-            })
-            .collect();
+        let shapes = small_spheres(3, n, true);
         let bytes = |built: &Built| built.levels.iter().map(Level::bytes).sum::<usize>();
         let free = levels(&shapes, usize::MAX);
         let budget = 24;
@@ -362,26 +372,9 @@ mod tests {
     /// scattered spheres, at cells from about their size to 16 times it.
     #[test]
     fn a_level_is_surely_over_its_budget_only_where_its_listing_is() {
-        use crate::rng::Rng;
-        use glam::Vec3;
-        let mut rng = Rng::new(8);
-        let shell = |rng: &mut Rng| {
-            let v = Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
-            (v - 0.5).normalize_or(Vec3::X) * 2.0
-        };
         let (mut over, mut under) = (0, 0);
         for packed in [true, false] {
-            let shapes: Vec<Ellipsoid<f32>> = (0..40_000)
-                .map(|_| {
-                    let at = match packed {
-                        true => shell(&mut rng),
-                        false => {
-                            Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32) * 6.0
-                        }
-                    };
-                    Ellipsoid::new(at, Vec3::splat(0.011 + 0.003 * rng.unit() as f32))
-                })
-                .collect();
+            let shapes = small_spheres(8, 40_000, packed);
             let extents = Extents::of(&shapes, 10.0);
             let ids: Vec<u32> = (0..shapes.len() as u32).collect();
             let (lo, hi) = (DVec3::splat(-3.0), DVec3::splat(7.0));
