@@ -473,13 +473,11 @@ struct BandCounts {
     in_packets: RayCounts,
 }
 
-/// Renders the band of rows `rows`, columns `columns`, into `out`, block by block and tile by
-/// tile (see [`tile_blocks`]), until `stop` says to stop. A tile's eye rays
-/// go to the index together, sample by sample across its pixels
-/// (neighbouring rays, which a packet walks at once); then the shadow rays
-/// of a whole block's hits toward each light together (the index finds the
-/// coherent packets among them); and each pixel then combines its own
-/// samples in order, exactly as one pixel at a time would.
+/// Renders the band of rows `rows`, columns `columns`, into `out`, block by
+/// block (see [`tile_blocks`]), until `stop` says to stop. The blocks are
+/// traced in parallel: a band is too coarse a unit on its own, for where
+/// the picture is costly in one band (a floor's reflections, a dense clump)
+/// the last band would leave every thread but one idle while it finishes.
 fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     tracer: &Tracer<R, I>,
     sampler: &PixelSampler,
@@ -490,25 +488,56 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     stop: &Stop,
 ) {
     let (x0, width) = (columns.start, columns.len() as u32);
-    let mut block = BlockRays::default();
-    for tiles in tile_blocks(columns, rows.clone()) {
-        block.aim(sampler, &tiles);
-        if !block.trace(tracer, counts, stop) {
+    let blocks: Vec<Vec<Vec<(u32, u32)>>> = tile_blocks(columns, rows.clone()).collect();
+    let colored: Vec<Option<(Vec<[u8; 3]>, BandCounts)>> = (blocks.par_iter())
+        .map_init(BlockRays::default, |block, tiles| {
+            render_block(tracer, sampler, tiles, block, stop)
+        })
+        .collect();
+    for (tiles, colored) in blocks.iter().zip(colored) {
+        let Some((colors, block_counts)) = colored else {
             return;
-        }
-        for (tile, &start) in tiles.iter().zip(&block.starts) {
-            for (p, &(x, y)) in tile.iter().enumerate() {
-                if stop.now() {
-                    return;
-                }
-                let samples = (0..sampler.spp() as usize).map(|s| start + s * tile.len() + p);
-                let color =
-                    sampler.combine(samples.map(|i| block.shade(tracer, i, &mut counts.rays)));
-                let at = (((y - rows.start) * width + x - x0) * 3) as usize;
-                out[at..at + 3].copy_from_slice(&to_bytes(color));
-            }
+        };
+        counts.rays += block_counts.rays;
+        counts.in_packets += block_counts.in_packets;
+        for (&(x, y), color) in tiles.iter().flatten().zip(colors) {
+            let at = (((y - rows.start) * width + x - x0) * 3) as usize;
+            out[at..at + 3].copy_from_slice(&color);
         }
     }
+}
+
+/// The colours of one block's pixels (tile by tile, in each tile's pixel
+/// order) and the rays they took, or None if told to stop. A tile's eye
+/// rays go to the index together, sample by sample across its pixels
+/// (neighbouring rays, which a packet walks at once); then the shadow rays
+/// of the whole block's hits toward each light together (the index finds
+/// the coherent packets among them); and each pixel then combines its own
+/// samples in order, exactly as one pixel at a time would.
+fn render_block<R: Real, I: SphereIndex<R> + ?Sized>(
+    tracer: &Tracer<R, I>,
+    sampler: &PixelSampler,
+    tiles: &[Vec<(u32, u32)>],
+    block: &mut BlockRays<R>,
+    stop: &Stop,
+) -> Option<(Vec<[u8; 3]>, BandCounts)> {
+    let mut counts = BandCounts::default();
+    block.aim(sampler, tiles);
+    if !block.trace(tracer, &mut counts, stop) {
+        return None;
+    }
+    let mut colors = Vec::with_capacity(tiles.iter().map(Vec::len).sum());
+    for (tile, &start) in tiles.iter().zip(&block.starts) {
+        for p in 0..tile.len() {
+            if stop.now() {
+                return None;
+            }
+            let samples = (0..sampler.spp() as usize).map(|s| start + s * tile.len() + p);
+            let color = sampler.combine(samples.map(|i| block.shade(tracer, i, &mut counts.rays)));
+            colors.push(to_bytes(color));
+        }
+    }
+    Some((colors, counts))
 }
 
 /// The eye rays of one block of tiles, their hits, and what their shadow
