@@ -72,7 +72,7 @@ mod octants;
 mod pairs;
 mod radix;
 
-use super::occupancy::{Occupancy, HEADINGS, SMALL_SCENE_GROUPS};
+use super::occupancy::{Occupancy, SMALL_SCENE_GROUPS};
 use super::table::{BlockTable, BLOCK_SHIFT, MAX_BLOCKS_PER_AXIS};
 use super::Level;
 use crate::geometry::{Ellipsoid, Real, Vec3Ops};
@@ -136,9 +136,13 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>], level_bytes: usize) -> Built {
         .filter(|ids| !ids.is_empty())
         .flat_map(|ids| split_by_density(&extents, ids));
     let by_cell = merge_equal_cells(&extents, parts);
-    // A scene of several levels may get a gate: a byte per heading for
-    // each of at most one group per sphere (see `gate`).
-    let gate_bytes = if by_cell.len() > 1 { HEADINGS } else { 0 };
+    // A scene of several levels may get a gate: a byte per heading and one
+    // for the levels' mask, for each of at most one cube per sphere (see `gate`).
+    let gate_bytes = if by_cell.len() > 1 {
+        super::gate::BYTES_PER_CUBE
+    } else {
+        0
+    };
     let per_sphere = level_bytes.saturating_sub(gate_bytes) as f64;
     let mut order: Vec<u32> = short_ids;
     let short = (0..order.len() as u32).collect();

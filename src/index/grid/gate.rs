@@ -12,6 +12,12 @@
 //! walked from there, or not at all. A level whose cells fill space (dust
 //! through the whole view) is left to its own walk ([`MOST_MARKED`]).
 //!
+//! Each cube also keeps which levels' cells meet it, a bit per level. An
+//! eye packet crosses the lattice layer by layer ([`Gate::packet_spans`])
+//! and walks each gated level only over the layers where it meets that
+//! level's cubes: where each clump holds spheres of one size, a packet
+//! through one clump walks that clump's level alone.
+//!
 //! # Why the levels miss nothing
 //! Every sphere a level holds lies in its occupied cells, and every occupied
 //! cell within marked cubes (a cell's box marks every cube it meets, in exact
@@ -23,8 +29,8 @@
 //! walks, started there less their own slack, visit every cell they would
 //! have visited from the start, as far as any hit.
 
-use super::occupancy::{Heading, Occupancy, MAX_GROUPS, SMALL_SCENE_GROUPS};
-use super::slab::{Packet, PlaneCells, Rect};
+use super::occupancy::{Heading, Occupancy, HEADINGS, MAX_GROUPS, SMALL_SCENE_GROUPS};
+use super::slab::{set_bits, Packet, PlaneCells, Rect};
 use super::walk::{first_axis, floor_to_int, greater, Ray64};
 use super::Level;
 
@@ -43,6 +49,20 @@ const PACKET_LAYERS: i64 = 512;
 /// look at each.
 const PACKET_CUBES: i64 = 64;
 
+/// Levels a cube's mask tells apart: level i answers to bit [`slot`]`(i)`,
+/// the levels from the eighth on sharing the last.
+const SLOTS: usize = 8;
+
+/// The bit of a cube's mask that answers for level `i`.
+#[inline(always)]
+fn slot(i: usize) -> usize {
+    i.min(SLOTS - 1)
+}
+
+/// Bytes a gate holds per cube: a proximity cloud's byte per heading, and
+/// the mask of the levels whose cells meet it.
+pub const BYTES_PER_CUBE: usize = HEADINGS + 1;
+
 /// Cubes marked over the levels' boxes, and how far unmarked space reaches
 /// ahead of each.
 pub struct Gate {
@@ -56,6 +76,9 @@ pub struct Gate {
     dims: [i64; 3],
     /// A cube's clouds: groups of one cube (`shift` 0).
     clouds: Occupancy,
+    /// Per cube (x fastest), bit [`slot`]`(i)` set where gated level i's
+    /// occupied cells meet it: a cube is marked where its mask is not 0.
+    met: Vec<u8>,
     /// The largest magnitude of the lattice's coordinates.
     extent: f64,
     /// The gated levels' largest slack ([`Level::slack`]): the gate is
@@ -63,6 +86,23 @@ pub struct Gate {
     pub slack: f64,
     /// Bit i set where the gate answers for level i.
     gated: u64,
+}
+
+/// Where along a packet each gated level may hold its hits ([`Gate::packet_spans`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PacketSpans([Option<[f64; 2]>; SLOTS]);
+
+impl PacketSpans {
+    const EVERYWHERE: PacketSpans = PacketSpans([Some([f64::NEG_INFINITY, f64::INFINITY]); SLOTS]);
+    const NOWHERE: PacketSpans = PacketSpans([None; SLOTS]);
+
+    /// The planes across the packet's axis (coordinates times its step, the
+    /// lesser first) between which gated level `level` may hold its rays'
+    /// hits; None where it holds none of them.
+    #[inline(always)]
+    pub fn of(&self, level: usize) -> Option<[f64; 2]> {
+        self.0[slot(level)]
+    }
 }
 
 /// The cubes: where cube (0, 0, 0) starts, their side, how many a side.
@@ -182,7 +222,7 @@ impl Gate {
             (spheres as i64).clamp(SMALL_SCENE_GROUPS, MAX_GROUPS),
         );
         let count = lattice.count();
-        let mut marked = vec![false; count];
+        let mut met = vec![0u8; count];
         let (mut gated, mut slack) = (0u64, 0.0f64);
         let mut meets = vec![false; count];
         for (i, level) in levels.iter().enumerate().take(u64::BITS as usize) {
@@ -194,22 +234,22 @@ impl Gate {
             }
             gated |= 1 << i;
             slack = slack.max(level.slack);
-            for (m, _) in marked.iter_mut().zip(&meets).filter(|(_, &o)| o) {
-                *m = true;
+            for (m, _) in met.iter_mut().zip(&meets).filter(|(_, &o)| o) {
+                *m |= 1 << slot(i);
             }
         }
-        (gated.count_ones() >= 2).then(|| Gate::new(lattice, &marked, gated, slack))
+        (gated.count_ones() >= 2).then(|| Gate::new(lattice, met, gated, slack))
     }
 
-    /// The gate of `marked` cubes (x fastest) of `lattice`, answering for
-    /// the levels of the bits of `gated`, whose largest slack is `slack`.
-    fn new(lattice: Lattice, marked: &[bool], gated: u64, slack: f64) -> Self {
+    /// The gate of the cubes of `lattice` with the levels' masks `met` (x
+    /// fastest; see [`Gate::met`]), answering for the levels of the bits of
+    /// `gated`, whose largest slack is `slack`.
+    fn new(lattice: Lattice, met: Vec<u8>, gated: u64, slack: f64) -> Self {
         let Lattice { origin, side, dims } = lattice;
         let far = [0, 1, 2].map(|a| origin[a] + dims[a] as f64 * side);
         let extent = (origin.iter().chain(&far)).fold(0.0f64, |m, x| m.max(x.abs()));
-        let occupied: Vec<u8> = marked
-            .iter()
-            .map(|&m| if m { 0 } else { u8::MAX })
+        let occupied: Vec<u8> = (met.iter())
+            .map(|&m| if m != 0 { 0 } else { u8::MAX })
             .collect();
         Gate {
             origin,
@@ -218,6 +258,7 @@ impl Gate {
             per_side: 1.0 / side,
             dims,
             clouds: Occupancy::of_groups(0, dims, &occupied),
+            met,
             extent,
             slack,
             gated,
@@ -236,7 +277,7 @@ impl Gate {
     }
 
     pub fn bytes(&self) -> usize {
-        self.clouds.bytes()
+        self.clouds.bytes() + self.met.len()
     }
 
     /// A t at or before the first at which the ray, within [t_lo, t_hi],
@@ -309,9 +350,9 @@ impl Gate {
         }
     }
 
-    /// The planes across `packet`'s axis (coordinates times its step, the
-    /// lesser first) between which its rays, searching from `t_min`, meet
-    /// marked cubes; None where none of them meets one. Eye packets only:
+    /// For each gated level, the planes across `packet`'s axis (coordinates
+    /// times its step, the lesser first) between which its rays, searching
+    /// from `t_min`, meet cubes that level's cells meet. Eye packets only:
     /// rays from one point (anything else is answered with every plane).
     ///
     /// The packet crosses the lattice layer by layer along its axis, as a
@@ -319,13 +360,16 @@ impl Gate {
     /// rectangle of cubes holds every ray's path through it, the rays'
     /// offsets widened by a bound on the rounding of its corners (at most
     /// [`MARGIN`] of the magnitudes involved, times the steepest slope; far
-    /// below a cube where the gate answers at all). A hit of a gated level
-    /// lies in a marked cube (module docs), so in a layer where its ray meets
-    /// one; the planes returned are those layers' outer planes, widened by
-    /// the levels' slack and by a cube against their own rounding.
+    /// below a cube where the gate answers at all). A hit of gated level i
+    /// lies in a cube its cells meet (module docs), so in a layer where its
+    /// ray meets a cube whose mask holds [`slot`]`(i)`; the planes returned
+    /// for the level are the first and last such layers' outer planes,
+    /// widened by the levels' slack and by a cube against their own
+    /// rounding. A level in a clump of its own is walked over that clump's
+    /// layers only, not wherever the packet meets another level's cubes.
     #[inline(never)]
-    pub fn packet_along(&self, packet: &Packet, t_min: f64) -> Option<[f64; 2]> {
-        let everywhere = Some([f64::NEG_INFINITY, f64::INFINITY]);
+    pub fn packet_spans(&self, packet: &Packet, t_min: f64) -> PacketSpans {
+        let everywhere = PacketSpans::EVERYWHERE;
         let (k, step) = (packet.axis(), packet.step());
         let range = packet.slope_range(u64::MAX);
         let magnitude = self.extent + packet.origin.iter().map(|x| x.abs()).sum::<f64>();
@@ -334,7 +378,9 @@ impl Gate {
         if !(from_one_point_ahead && rounding < self.side / 4.0) {
             return everywhere;
         }
-        let (first, last) = self.layers_ahead(packet)?;
+        let Some((first, last)) = self.layers_ahead(packet) else {
+            return PacketSpans::NOWHERE;
+        };
         let layers = (last - first).abs() + 1;
         if layers > PACKET_LAYERS {
             return everywhere;
@@ -343,23 +389,22 @@ impl Gate {
         let range = range.widened(rounding);
         let cubes = PlaneCells::of_lattice(&self.origin, self.per_side, self.dims, packet);
         let plane = |i: i64| self.origin[k] + i as f64 * self.side - packet.origin[k];
-        let (mut first_marked, mut last_marked) = (None, None);
+        // Per slot, the first and last layer where the packet meets its cubes.
+        let mut met_in: [Option<(i64, i64)>; SLOTS] = [None; SLOTS];
         // Layer s lies between planes s and s + 1, which ever comes first.
         let mut entry = cubes.at(&range, plane(first + i64::from(step < 0)));
         for s in (0..layers).map(|n| first + n * step) {
             let exit = cubes.at(&range, plane(s + i64::from(step > 0)));
             let rect = Rect::between(&entry, &exit);
             entry = exit;
-            match self.marked_within(k, s, &rect) {
-                None => return everywhere,
-                Some(true) => {
-                    first_marked.get_or_insert(s);
-                    last_marked = Some(s);
-                }
-                Some(false) => {}
+            let Some(met) = self.met_within(k, s, &rect) else {
+                return everywhere;
+            };
+            for slot in set_bits(u64::from(met)) {
+                let (from, _) = met_in[slot].unwrap_or((s, s));
+                met_in[slot] = Some((from, s));
             }
         }
-        let (first_marked, last_marked) = (first_marked?, last_marked?);
         // Layer s lies between planes s and s + 1: coordinates times the
         // step, the lesser first.
         let ends = |s: i64| {
@@ -367,7 +412,11 @@ impl Gate {
             [a.min(b), a.max(b)]
         };
         let widen = self.slack + self.side;
-        Some([ends(first_marked)[0] - widen, ends(last_marked)[1] + widen])
+        PacketSpans(
+            met_in.map(|layers| {
+                layers.map(|(from, to)| [ends(from)[0] - widen, ends(to)[1] + widen])
+            }),
+        )
     }
 
     /// The first and last layer of cubes across `packet`'s axis that its
@@ -387,28 +436,24 @@ impl Gate {
         ((last - first) * step >= 0).then_some((first, last))
     }
 
-    /// Whether layer `s` across axis `k` holds a marked cube within `rect`
-    /// (cubes within the lattice); None where the rectangle spans more than
-    /// [`PACKET_CUBES`] cubes.
-    fn marked_within(&self, k: usize, s: i64, rect: &Rect) -> Option<bool> {
+    /// The levels' masks of the cubes of layer `s` across axis `k` within
+    /// `rect` (cubes within the lattice), joined; None where the rectangle
+    /// spans more than [`PACKET_CUBES`] cubes.
+    fn met_within(&self, k: usize, s: i64, rect: &Rect) -> Option<u8> {
         let (lo, hi) = (rect.lo, rect.hi);
         if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
             return None;
         }
         let [u, v] = [(k + 1) % 3, (k + 2) % 3];
         let mut c = [s; 3];
-        Some((lo[0]..=hi[0]).any(|cu| {
-            (lo[1]..=hi[1]).any(|cv| {
+        let mut met = 0;
+        for cu in lo[0]..=hi[0] {
+            for cv in lo[1]..=hi[1] {
                 (c[u], c[v]) = (cu, cv);
-                self.is_marked(c)
-            })
-        }))
-    }
-
-    /// Whether cube `c` is marked: its clouds put it at distance 0 ahead on
-    /// every heading.
-    fn is_marked(&self, c: [i64; 3]) -> bool {
-        self.clouds.distance(c, Heading::of([1; 3])) == 0
+                met |= self.met[((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize];
+            }
+        }
+        Some(met)
     }
 
     /// A bound on the rounding of the gate walk's t, with room: each t is a
@@ -498,7 +543,8 @@ mod tests {
             let Lattice { origin, side, dims } = lattice;
             let density = [0.002, 0.02, 0.1, 0.3][case % 4];
             let marked: Vec<bool> = (0..lattice.count()).map(|_| rng.unit() < density).collect();
-            let gate = Gate::new(lattice, &marked, 0b11, 0.0);
+            let met = marked.iter().map(|&m| u8::from(m) * 0b11).collect();
+            let gate = Gate::new(lattice, met, 0b11, 0.0);
             let size = dims.map(|d| d as f64 * side);
             for _ in 0..50 {
                 let place = |rng: &mut Rng| {
@@ -544,18 +590,25 @@ mod tests {
     }
 
     /// At random scales and places, every point at which a packet's ray is
-    /// in a marked cube lies between the planes the gate gives the packet,
-    /// and it says "nowhere" for most packets that meet none.
+    /// in a cube a level's cells meet lies between the planes the gate gives
+    /// that level for the packet, and it says "nowhere" for most packets
+    /// that meet none of the level's cubes, whatever they meet of the
+    /// other's.
     #[test]
-    fn a_packets_marked_cubes_lie_between_its_planes() {
+    fn a_packets_cubes_of_each_level_lie_between_its_planes() {
         let mut rng = Rng::new(12);
         let (mut clear, mut said_clear, mut asked) = (0, 0, 0);
         for case in 0..300 {
             let lattice = random_lattice(&mut rng, 12);
             let Lattice { origin, side, dims } = lattice;
             let density = [0.002, 0.02, 0.1][case % 3];
-            let marked: Vec<bool> = (0..lattice.count()).map(|_| rng.unit() < density).collect();
-            let gate = Gate::new(lattice, &marked, 0b11, side * rng.unit());
+            // Two levels, the cubes each meets drawn apart.
+            let marked: [Vec<bool>; 2] =
+                [0, 1].map(|_| (0..lattice.count()).map(|_| rng.unit() < density).collect());
+            let met = (marked[0].iter().zip(&marked[1]))
+                .map(|(&a, &b)| u8::from(a) | u8::from(b) << 1)
+                .collect();
+            let gate = Gate::new(lattice, met, 0b11, side * rng.unit());
             let size = dims.map(|d| d as f64 * side);
             let place = |rng: &mut Rng, a: usize, wide: f64| {
                 origin[a] + (rng.unit() * (1.0 + 2.0 * wide) - wide) * size[a]
@@ -574,20 +627,25 @@ mod tests {
                         return;
                     }
                     let (axis, step) = (packet.axis(), packet.step() as f64);
-                    let planes: Vec<f64> = (packet.rays.iter())
-                        .flat_map(|ray| marked_planes(&gate, &marked, ray, axis, step))
-                        .collect();
+                    let spans = gate.packet_spans(packet, 0.0);
                     asked += 1;
-                    match gate.packet_along(packet, 0.0) {
-                        Some([lo, hi]) => assert!(
-                            planes.iter().all(|&p| lo <= p && p <= hi),
-                            "{planes:?} outside {lo}..{hi}"
-                        ),
-                        None => assert!(planes.is_empty(), "{planes:?} said clear"),
-                    }
-                    if planes.is_empty() {
-                        clear += 1;
-                        said_clear += usize::from(gate.packet_along(packet, 0.0).is_none());
+                    for (level, marked) in marked.iter().enumerate() {
+                        let planes: Vec<f64> = (packet.rays.iter())
+                            .flat_map(|ray| marked_planes(&gate, marked, ray, axis, step))
+                            .collect();
+                        match spans.of(level) {
+                            Some([lo, hi]) => assert!(
+                                planes.iter().all(|&p| lo <= p && p <= hi),
+                                "level {level}: {planes:?} outside {lo}..{hi}"
+                            ),
+                            None => {
+                                assert!(planes.is_empty(), "level {level}: {planes:?} said clear")
+                            }
+                        }
+                        if planes.is_empty() {
+                            clear += 1;
+                            said_clear += usize::from(spans.of(level).is_none());
+                        }
                     }
                 });
             }

@@ -250,12 +250,12 @@ impl<R: Real> VoxelHashGrid<R> {
         if groups.budget.spent() {
             return;
         }
-        // Where the gated levels may hold the packet's hits: None for nowhere.
+        // Where each gated level may hold the packet's hits: None for nowhere.
         let gate = self.gate.as_ref();
-        let gated_along = gate.map(|gate| gate.packet_along(packet, t_min.to_f64()));
+        let spans = gate.map(|gate| gate.packet_spans(packet, t_min.to_f64()));
         for (i, level) in self.levels.iter().enumerate() {
-            let along = match (gate, gated_along) {
-                (Some(gate), Some(along)) if gate.gates(i) => along,
+            let along = match (gate, &spans) {
+                (Some(gate), Some(spans)) if gate.gates(i) => spans.of(i),
                 _ => Some(Limits::NONE.along),
             };
             let Some(along) = along else {
