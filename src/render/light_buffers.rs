@@ -18,10 +18,9 @@
 //! most, and the render that follows stops at its own checks.
 
 use super::region::Region;
-use super::Deadline;
-use super::PixelSampler;
-use crate::geometry::{Ray, Real, Vec3Ops, V3};
-use crate::index::{SphereIndex, VoxelHashGrid};
+use super::{first_hit, Deadline, PixelSampler};
+use crate::geometry::{Real, Vec3Ops, V3};
+use crate::index::VoxelHashGrid;
 use crate::scene::Scene;
 use rayon::prelude::*;
 
@@ -76,9 +75,7 @@ fn eye_hit_fraction<R: Real>(
                 if come() {
                     return None;
                 }
-                let dir = sampler.direction(f64::from(x), f64::from(y));
-                let ray = Ray::new(eye, V3::<R>::from_dvec3(dir));
-                hits += usize::from(grid.closest_hit(&ray, R::one(), R::infinity()).is_some());
+                hits += usize::from(first_hit(grid, &sampler, eye, x, y).is_some());
             }
             Some(hits)
         })

@@ -280,15 +280,25 @@ pub fn eye_hit_map_from<R: Real>(scene: &Scene, kind: IndexKind, eye: DVec3) -> 
     let origin = V3::<R>::from_dvec3(eye);
     (0..width * height)
         .into_par_iter()
-        .map(|i| {
-            let dir = sampler.direction(f64::from(i % width), f64::from(i / width));
-            let ray = Ray::new(origin, V3::<R>::from_dvec3(dir));
-            // As in the renderer: the nearest hit beyond the near plane.
-            index
-                .closest_hit(&ray, R::one(), R::infinity())
-                .map(|hit| hit.sphere)
-        })
+        .map(|i| first_hit(&*index, &sampler, origin, i % width, i / width).map(|hit| hit.sphere))
         .collect()
+}
+
+/// The first hit of the eye ray from `eye` through the centre of pixel
+/// (x, y), as the renderer asks for it: the nearest beyond the image plane.
+fn first_hit<R: Real, I: SphereIndex<R> + ?Sized>(
+    index: &I,
+    sampler: &PixelSampler,
+    eye: V3<R>,
+    x: u32,
+    y: u32,
+) -> Option<crate::index::Hit<R>> {
+    let dir = sampler.direction(f64::from(x), f64::from(y));
+    index.closest_hit(
+        &Ray::new(eye, V3::<R>::from_dvec3(dir)),
+        R::one(),
+        R::infinity(),
+    )
 }
 
 /// Refuses settings out of their bounds with the words the command line and
@@ -352,12 +362,12 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
     let sampler = PixelSampler::new(&scene.camera, options.spp);
     let width = region.width() as usize;
     let mut rgb = vec![0u8; width * region.height() as usize * 3];
-    let totals = Mutex::new(BandCounts::default());
+    let totals = Mutex::new(TracedRays::default());
     let rows_done = AtomicU32::new(0);
     rgb.par_chunks_mut(width * 3 * BAND_ROWS as usize)
         .enumerate()
         .for_each(|(band, out)| {
-            let mut counts = BandCounts::default();
+            let mut counts = TracedRays::default();
             let start = region.y0 + band as u32 * BAND_ROWS;
             let rows = start..(start + BAND_ROWS).min(region.y1);
             let columns = region.columns();
@@ -372,10 +382,7 @@ fn trace_all<R: Real, I: SphereIndex<R> + ?Sized>(
             );
             // A poisoned lock only means another band panicked, which
             // propagates anyway; its counts are still sound to add to.
-            let mut totals = totals.lock().unwrap_or_else(|e| e.into_inner());
-            totals.rays += counts.rays;
-            totals.in_packets += counts.in_packets;
-            drop(totals);
+            *totals.lock().unwrap_or_else(|e| e.into_inner()) += counts;
             progress(rows_done.fetch_add(rows.len() as u32, Ordering::Relaxed) + rows.len() as u32);
         });
     match stop.outcome() {
@@ -466,11 +473,19 @@ fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
     pixels
 }
 
-/// The rays one band traced: all of them, and those in packets.
+/// The rays a block, a band or a render traced: all of them, and those in
+/// packets.
 #[derive(Default)]
-struct BandCounts {
+struct TracedRays {
     rays: RayCounts,
     in_packets: RayCounts,
+}
+
+impl std::ops::AddAssign for TracedRays {
+    fn add_assign(&mut self, other: TracedRays) {
+        self.rays += other.rays;
+        self.in_packets += other.in_packets;
+    }
 }
 
 /// Renders the band of rows `rows`, columns `columns`, into `out`, block by
@@ -484,12 +499,12 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
     columns: std::ops::Range<u32>,
     rows: std::ops::Range<u32>,
     out: &mut [u8],
-    counts: &mut BandCounts,
+    counts: &mut TracedRays,
     stop: &Stop,
 ) {
     let (x0, width) = (columns.start, columns.len() as u32);
     let blocks: Vec<Vec<Vec<(u32, u32)>>> = tile_blocks(columns, rows.clone()).collect();
-    let colored: Vec<Option<(Vec<[u8; 3]>, BandCounts)>> = (blocks.par_iter())
+    let colored: Vec<Option<(Vec<[u8; 3]>, TracedRays)>> = (blocks.par_iter())
         .map_init(BlockRays::default, |block, tiles| {
             render_block(tracer, sampler, tiles, block, stop)
         })
@@ -498,8 +513,7 @@ fn render_band<R: Real, I: SphereIndex<R> + ?Sized>(
         let Some((colors, block_counts)) = colored else {
             return;
         };
-        counts.rays += block_counts.rays;
-        counts.in_packets += block_counts.in_packets;
+        *counts += block_counts;
         for (&(x, y), color) in tiles.iter().flatten().zip(colors) {
             let at = (((y - rows.start) * width + x - x0) * 3) as usize;
             out[at..at + 3].copy_from_slice(&color);
@@ -520,8 +534,8 @@ fn render_block<R: Real, I: SphereIndex<R> + ?Sized>(
     tiles: &[Vec<(u32, u32)>],
     block: &mut BlockRays<R>,
     stop: &Stop,
-) -> Option<(Vec<[u8; 3]>, BandCounts)> {
-    let mut counts = BandCounts::default();
+) -> Option<(Vec<[u8; 3]>, TracedRays)> {
+    let mut counts = TracedRays::default();
     block.aim(sampler, tiles);
     if !block.trace(tracer, &mut counts, stop) {
         return None;
@@ -581,7 +595,7 @@ impl<R: Real> BlockRays<R> {
     fn trace<I: SphereIndex<R> + ?Sized>(
         &mut self,
         tracer: &Tracer<R, I>,
-        counts: &mut BandCounts,
+        counts: &mut TracedRays,
         stop: &Stop,
     ) -> bool {
         self.hits.clear();
@@ -600,7 +614,7 @@ impl<R: Real> BlockRays<R> {
                 .zip(&self.hits)
                 .map(|(&dir, hit)| hit.map(|hit| tracer.eye_surface(dir, hit))),
         );
-        let BandCounts { rays, in_packets } = counts;
+        let TracedRays { rays, in_packets } = counts;
         tracer.eye_shadows(
             &self.hits,
             &self.surfaces,

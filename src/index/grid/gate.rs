@@ -450,7 +450,8 @@ impl Gate {
         for cu in lo[0]..=hi[0] {
             for cv in lo[1]..=hi[1] {
                 (c[u], c[v]) = (cu, cv);
-                met |= self.met[((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize];
+                // The clouds' groups are the cubes, in the same order.
+                met |= self.met[self.clouds.index(c)];
             }
         }
         Some(met)

@@ -116,8 +116,9 @@ impl Occupancy {
         HEADINGS * dims.iter().product::<i64>() as usize
     }
 
+    /// Where group `g` (inside the box) is in a cloud: x fastest.
     #[inline(always)]
-    fn index(&self, g: [i64; 3]) -> usize {
+    pub(super) fn index(&self, g: [i64; 3]) -> usize {
         ((g[2] * self.dims[1] + g[1]) * self.dims[0] + g[0]) as usize
     }
 
