@@ -52,6 +52,7 @@
 //! here, whatever the scene.
 
 mod build;
+mod fill;
 mod footprint;
 mod listed;
 
