@@ -7,18 +7,22 @@
 
 mod binary;
 mod bounds;
+mod builder;
 mod decimal;
 mod diagnostic;
 mod error;
+mod keyword;
 mod lines;
 mod parse;
 mod read;
+mod tokens;
 mod write;
 
 pub use diagnostic::Diagnostic;
 pub use error::{Length, SceneError, SceneErrorKind};
+pub use keyword::{COLUMNS_FIELD, ROWS_FIELD};
 pub use lines::line_text;
-pub use parse::{image_side, parse, COLUMNS_FIELD, ROWS_FIELD};
+pub use parse::{image_side, parse};
 pub use read::{read, ReadError, TooLarge};
 pub use write::{write_light, write_scene, write_sphere};
 
