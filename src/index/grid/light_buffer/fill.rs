@@ -319,7 +319,12 @@ pub(super) struct Split {
 
 impl Split {
     /// A few per thread, so that uneven ones still share the work, but no
-    /// more than keep their counts within [`COUNT_BYTES_PER_SPHERE`].
+    /// more than keep their counts within [`COUNT_BYTES_PER_SPHERE`]. A
+    /// light with four texels a sphere or more (small spheres all around
+    /// it) gets one part: sharing the lists by runs of texels instead, one
+    /// array of counts for any number of tasks, gains there and loses more
+    /// on the lights that get eight (docs/index.md, "The lists' fill shared
+    /// by texels").
     pub(super) fn for_threads(spheres: usize, texels: usize, threads: usize) -> Self {
         let affordable = spheres * COUNT_BYTES_PER_SPHERE / (4 * texels.max(1));
         Split {
