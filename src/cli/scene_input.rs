@@ -37,7 +37,14 @@ pub fn read_scene(path: &Path, max_bytes: u64) -> Result<Scene, CliError> {
     let result = if is_stdin(path) {
         scene::read(std::io::stdin().lock(), max_bytes)
     } else {
-        scene::read(open_within(path, &origin, max_bytes)?, max_bytes)
+        let file = open_within(path, &origin, max_bytes)?;
+        // A regular file's size tells the parser how many spheres to expect.
+        let size = file
+            .metadata()
+            .ok()
+            .filter(|m| m.is_file())
+            .map(|m| m.len());
+        scene::read_expecting(file, max_bytes, size)
     };
     result.map_err(|e| match e {
         ReadError::Io(error) => cannot_read(&origin, error),

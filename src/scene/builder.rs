@@ -132,6 +132,19 @@ impl SceneBuilder {
         );
     }
 
+    /// Spheres folded so far, some of them perhaps not yet appended.
+    pub(super) fn sphere_count(&self) -> usize {
+        self.sphere_count
+    }
+
+    /// Room for `count` spheres in all, so that appending them up to there
+    /// neither copies the spheres already in place nor faults in pages twice.
+    pub(super) fn reserve_spheres(&mut self, count: usize) {
+        let count = count.min(limits::MAX_SPHERES);
+        self.spheres
+            .reserve(count.saturating_sub(self.spheres.len()));
+    }
+
     /// Counts the lengths of a piece's lines (`extremes`) into the scene's,
     /// for its scene-wide bounds.
     pub(super) fn merge_extremes(&mut self, extremes: &Extremes) {

@@ -23,7 +23,7 @@ pub use error::{Length, SceneError, SceneErrorKind};
 pub use keyword::{COLUMNS_FIELD, ROWS_FIELD};
 pub use lines::line_text;
 pub use parse::{image_side, parse};
-pub use read::{read, ReadError, TooLarge};
+pub use read::{read, read_expecting, ReadError, TooLarge};
 pub use write::{write_light, write_scene, write_sphere};
 
 use glam::DVec3;

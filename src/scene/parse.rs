@@ -102,6 +102,20 @@ impl Parser {
         Ok(())
     }
 
+    /// Gives the scene's spheres room for a whole text of `total` bytes, at
+    /// the rate (spheres a byte) of the text fed so far, with a sixteenth
+    /// more for lines a little shorter further on. Only a hint: the spheres
+    /// still grow past it as they must.
+    pub fn expect_bytes(&mut self, total: u64) {
+        if self.offset == 0 {
+            return;
+        }
+        let per_byte = self.builder.sphere_count() as f64 / self.offset as f64;
+        let expected = per_byte * total as f64 * (1.0 + 1.0 / 16.0);
+        // `as` saturates; the builder caps it at the spheres a scene may have.
+        self.builder.reserve_spheres(expected as usize);
+    }
+
     /// The number of the line the next text fed starts with.
     pub fn next_line(&self) -> usize {
         self.next_line

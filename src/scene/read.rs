@@ -68,7 +68,21 @@ impl fmt::Display for TooLarge {
 /// Reads and parses the scene text of `source`, at most `max_bytes` of it.
 /// The scene, or the error, is the one `scene::parse` gives on the whole
 /// text, except that a text past `max_bytes` is [`ReadError::TooLarge`].
-pub fn read(mut source: impl Read, max_bytes: u64) -> Result<Scene, ReadError> {
+pub fn read(source: impl Read, max_bytes: u64) -> Result<Scene, ReadError> {
+    read_expecting(source, max_bytes, None)
+}
+
+/// [`read`] of a text expected to be `expected` bytes long (a regular
+/// file's size, known before a byte is read): once its first piece is
+/// parsed, the scene's spheres get room for the whole text at the rate that
+/// piece holds them ([`Parser::expect_bytes`]), so that they are written
+/// once into pages faulted in once, rather than copied each time their
+/// vector doubles. The result does not depend on it.
+pub fn read_expecting(
+    mut source: impl Read,
+    max_bytes: u64,
+    mut expected: Option<u64>,
+) -> Result<Scene, ReadError> {
     let mut parser = Parser::new();
     let mut piece = Vec::with_capacity(PIECE_BYTES);
     let mut total = 0u64;
@@ -104,6 +118,9 @@ pub fn read(mut source: impl Read, max_bytes: u64) -> Result<Scene, ReadError> {
         // Whole lines go to the parser; the start of the next waits for its end.
         let cut = piece.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
         parser.feed(&piece[..cut]).map_err(in_piece)?;
+        if let Some(total) = expected.take() {
+            parser.expect_bytes(total);
+        }
         parser.check_unfinished(&piece[cut..]).map_err(in_piece)?;
         piece.drain(..cut);
     }
@@ -140,6 +157,35 @@ mod tests {
                 assert_eq!(source_line.as_deref(), Some("NEAR 2"));
             }
             other => panic!("{other:?}"),
+        }
+    }
+
+    /// A text's expected length changes nothing it says, whether right,
+    /// short or far off; right, it gives the spheres their room at once
+    /// (grown piece by piece, the vector would double past them).
+    #[test]
+    fn the_expected_length_is_only_a_hint() {
+        let mut text = String::from(HEAD);
+        let mut i = 0;
+        while text.len() < 2 * PIECE_BYTES + PIECE_BYTES / 2 {
+            text += &format!("SPHERE s{i} {i} 0 -5 1 1 1 0.5 0.5 0.5 1 1 1 0 50\n");
+            i += 1;
+        }
+        let whole = parse(&text).unwrap();
+        let length = text.len() as u64;
+        for expected in [
+            None,
+            Some(0),
+            Some(length / 3),
+            Some(length),
+            Some(u64::MAX),
+        ] {
+            let read = read_expecting(text.as_bytes(), u64::MAX, expected).unwrap();
+            assert_eq!(read, whole, "{expected:?}");
+            if expected == Some(length) {
+                let (len, room) = (read.spheres.len(), read.spheres.capacity());
+                assert!(room >= len && room <= len + len / 8, "{room} for {len}");
+            }
         }
     }
 
