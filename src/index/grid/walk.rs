@@ -6,12 +6,14 @@
 //! cannot drift over a million cells. An axis the ray runs parallel to (d = ±0)
 //! never steps: its next crossing is +∞. Empty space is crossed a box at
 //! a time: the empty groups of blocks ahead of the walk's one (as far as the
-//! level's proximity cloud for the ray's heading says), an empty region
-//! (4×4×4 blocks), or an empty cube of 2×2×2 blocks in an occupied region in
-//! one step, the walk moving to the first cell beyond the box along the
-//! ray; an empty block alone (the commonest, beside a sphere) is crossed in
-//! the few cell steps the ray takes through it, which cost less than that
-//! one step.
+//! level's proximity cloud for the ray's heading says) or an empty region
+//! (4×4×4 blocks) in one step, the walk moving to the first cell beyond the
+//! box along the ray. Inside an occupied region the walk steps block by
+//! block over the region's empty blocks, a DDA over its mask (as the
+//! hierarchical DDA of NanoVDB steps a node's children), and finds its cell
+//! again only where it enters an occupied block or leaves the region: a
+//! block step costs about what one cell step does, where finding the cell
+//! costs several.
 //!
 //! On a level whose cells list many spheres, each reference keeps the
 //! octants of its cell its sphere overlaps, and the walk offers a visit only
@@ -154,12 +156,19 @@ const REGION_SHIFT: u32 = 2 * BLOCK_SHIFT;
 struct Empty {
     shift: u32,
     radius: i64,
+    /// The occupied blocks of the region around the walk's empty block (0
+    /// where the box is no part of an occupied region).
+    region_blocks: u64,
 }
 
 impl Empty {
     /// The group of `1 << shift` cells a side holding the walk's cell, alone.
     fn group(shift: u32) -> Self {
-        Empty { shift, radius: 0 }
+        Empty {
+            shift,
+            radius: 0,
+            region_blocks: 0,
+        }
     }
 
     /// Whether the box is the walk's block alone.
@@ -223,15 +232,6 @@ pub(super) fn greater<T: PartialOrd>(a: T, b: T) -> T {
     } else {
         a
     }
-}
-
-/// The bits of the aligned 2×2×2 cube around `c` in a 4×4×4 mask laid out
-/// as [`cell_bit`]: bits 0, 1, 4, 5, 16, 17, 20 and 21, moved to the cube's
-/// corner.
-#[inline(always)]
-fn pair_cube(c: [i64; 3]) -> u64 {
-    let corner = (c[0] & 2) | (c[1] & 2) << BLOCK_SHIFT | (c[2] & 2) << (2 * BLOCK_SHIFT);
-    0x33_0033u64 << corner
 }
 
 /// The axis whose next crossing comes first (the lowest of equal ones),
@@ -407,6 +407,14 @@ impl Level {
                             bit = cell_bit(c);
                             *block.insert(cells)
                         }
+                        Err(empty) if empty.region_blocks != 0 => {
+                            // An empty block of an occupied region.
+                            let blocks = empty.region_blocks;
+                            if !self.cross_blocks(ray, &axes, &mut c, &mut t_next, limit, blocks) {
+                                return;
+                            }
+                            continue;
+                        }
                         Err(empty) if empty.is_one_block() => {
                             if !self.step_out_of_block(&axes, &mut c, &mut t_next, limit) {
                                 return;
@@ -439,13 +447,12 @@ impl Level {
     }
 
     /// The occupied block at block coordinates `b` the walk enters at cell
-    /// `c`, or the empty box it starts to cross in one step. Empty space at
-    /// three scales: the empty groups ahead of `c`'s in the level's
-    /// proximity cloud for the ray's `heading`, a region (4×4×4 blocks) with
-    /// no occupied block, and an empty block of an occupied region, alone or
-    /// with the aligned cube of 2×2×2 blocks around it, the last two read
-    /// from the region's mask. An occupied block is found from the region
-    /// too, without another probe.
+    /// `c`, or the empty space it starts to cross. Empty space at three
+    /// scales: the empty groups ahead of `c`'s in the level's proximity
+    /// cloud for the ray's `heading`, a region (4×4×4 blocks) with no
+    /// occupied block, and an empty block of an occupied region (with the
+    /// region's mask, which [`Self::cross_blocks`] steps over). An occupied
+    /// block is found from the region too, without another probe.
     #[inline(always)]
     fn enter_block(
         &self,
@@ -459,6 +466,7 @@ impl Level {
             return Err(Empty {
                 shift: self.occupancy.shift,
                 radius: i64::from(distance) - 1,
+                region_blocks: 0,
             });
         }
         let region = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
@@ -469,8 +477,10 @@ impl Level {
         }
         let bit = cell_bit(b);
         if !region.holds(bit) {
-            let cube_empty = region.blocks & pair_cube(b) == 0;
-            return Err(Empty::group(BLOCK_SHIFT + u32::from(cube_empty)));
+            return Err(Empty {
+                region_blocks: region.blocks,
+                ..Empty::group(BLOCK_SHIFT)
+            });
         }
         Ok(self.table.block_in(region, bit))
     }
@@ -526,7 +536,7 @@ impl Level {
     /// enters beyond the block, one cell step at a time. False when that
     /// lies beyond `limit` (finite) or outside the level. A ray crosses a
     /// block in a few steps, each a fraction of what [`Self::leave_empty`]
-    /// costs, so the walk's most frequent empty box is crossed this way.
+    /// costs, so a cloud's group of one empty block is crossed this way.
     #[inline(always)]
     fn step_out_of_block(
         &self,
@@ -542,6 +552,72 @@ impl Level {
             if axes.entered_block(a, c[a]) {
                 return true;
             }
+        }
+    }
+
+    /// Moves from cell `c`, in an empty block of an occupied region whose
+    /// occupied blocks are `blocks`, block by block across the region's
+    /// empty blocks, to the first cell the ray enters of an occupied block or
+    /// beyond the region. False when that lies beyond `limit` (finite) or
+    /// outside the level. Each block is left as [`Self::leave_empty`] leaves
+    /// a box of one block (the same exit t and axis), so the blocks crossed
+    /// are those its leaps would cross; the cells are found once, at the end.
+    fn cross_blocks(
+        &self,
+        ray: &Ray64,
+        axes: &Axes,
+        c: &mut [i64; 3],
+        t_next: &mut [f64; 3],
+        limit: f64,
+        blocks: u64,
+    ) -> bool {
+        let b0 = c.map(|v| v >> BLOCK_SHIFT);
+        let region = b0.map(|v| v >> BLOCK_SHIFT);
+        let mut b = b0;
+        // The block's last cell along each axis's direction of travel.
+        let last_on = |a: usize, b: i64| ((b + axes.up[a]) << BLOCK_SHIFT) - axes.up[a];
+        let mut exits = [
+            axes.crossing(0, last_on(0, b[0])),
+            axes.crossing(1, last_on(1, b[1])),
+            axes.crossing(2, last_on(2, b[2])),
+        ];
+        loop {
+            let a = first_axis(&exits);
+            let t_exit = exits[a];
+            if t_exit > limit {
+                return false;
+            }
+            let from = b;
+            b[a] += axes.step[a];
+            let left_region = b[a] >> BLOCK_SHIFT != region[a];
+            if !left_region && blocks >> cell_bit(b) & 1 == 0 {
+                exits[a] = axes.crossing(a, last_on(a, b[a]));
+                continue;
+            }
+            // The first cell past block `from` across a plane of axis a: the
+            // next block's first along a, and on the other axes the cell of
+            // the exit point within `from`'s (only rounding could put it
+            // outside).
+            for k in 0..3 {
+                let first = from[k] << BLOCK_SHIFT;
+                let last = first + BLOCK_SIDE - 1;
+                c[k] = if k == a {
+                    if axes.step[k] > 0 {
+                        last + 1
+                    } else {
+                        first - 1
+                    }
+                } else if axes.step[k] == 0 {
+                    c[k]
+                } else {
+                    self.cell_at(ray, t_exit, k, first, last)
+                };
+                if c[k] < 0 || c[k] >= self.dims[k] {
+                    return false;
+                }
+                t_next[k] = axes.crossing(k, c[k]);
+            }
+            return true;
         }
     }
 
