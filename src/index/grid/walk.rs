@@ -561,7 +561,8 @@ impl Level {
     /// beyond the region. False when that lies beyond `limit` (finite) or
     /// outside the level. Each block is left as [`Self::leave_empty`] leaves
     /// a box of one block (the same exit t and axis), so the blocks crossed
-    /// are those its leaps would cross; the cells are found once, at the end.
+    /// are those its leaps would cross; the cell is found once, at the end,
+    /// as past a box of all the blocks crossed ([`Self::land_past`]).
     fn cross_blocks(
         &self,
         ray: &Ray64,
@@ -571,9 +572,8 @@ impl Level {
         limit: f64,
         blocks: u64,
     ) -> bool {
-        let b0 = c.map(|v| v >> BLOCK_SHIFT);
-        let region = b0.map(|v| v >> BLOCK_SHIFT);
-        let mut b = b0;
+        let mut b = c.map(|v| v >> BLOCK_SHIFT);
+        let region = b.map(|v| v >> BLOCK_SHIFT);
         // The block's last cell along each axis's direction of travel.
         let last_on = |a: usize, b: i64| ((b + axes.up[a]) << BLOCK_SHIFT) - axes.up[a];
         let mut exits = [
@@ -587,37 +587,20 @@ impl Level {
             if t_exit > limit {
                 return false;
             }
-            let from = b;
+            let last = [0, 1, 2].map(|k| last_on(k, b[k]));
             b[a] += axes.step[a];
             let left_region = b[a] >> BLOCK_SHIFT != region[a];
             if !left_region && blocks >> cell_bit(b) & 1 == 0 {
                 exits[a] = axes.crossing(a, last_on(a, b[a]));
                 continue;
             }
-            // The first cell past block `from` across a plane of axis a: the
-            // next block's first along a, and on the other axes the cell of
-            // the exit point within `from`'s (only rounding could put it
-            // outside).
-            for k in 0..3 {
-                let first = from[k] << BLOCK_SHIFT;
-                let last = first + BLOCK_SIDE - 1;
-                c[k] = if k == a {
-                    if axes.step[k] > 0 {
-                        last + 1
-                    } else {
-                        first - 1
-                    }
-                } else if axes.step[k] == 0 {
-                    c[k]
-                } else {
-                    self.cell_at(ray, t_exit, k, first, last)
-                };
-                if c[k] < 0 || c[k] >= self.dims[k] {
-                    return false;
-                }
-                t_next[k] = axes.crossing(k, c[k]);
-            }
-            return true;
+            // The blocks crossed since `c` end at the last block's last cells.
+            let exit = BoxExit {
+                last,
+                axis: a,
+                t: t_exit,
+            };
+            return self.land_past(ray, axes, c, t_next, exit);
         }
     }
 
@@ -654,6 +637,26 @@ impl Level {
         if t_exit > limit {
             return false;
         }
+        let exit = BoxExit {
+            last,
+            axis: a,
+            t: t_exit,
+        };
+        self.land_past(ray, axes, c, t_next, exit)
+    }
+
+    /// Moves the walk from cell `c` to the first cell past the empty box it
+    /// leaves at `exit`. False outside the level.
+    #[inline(always)]
+    fn land_past(
+        &self,
+        ray: &Ray64,
+        axes: &Axes,
+        c: &mut [i64; 3],
+        t_next: &mut [f64; 3],
+        exit: BoxExit,
+    ) -> bool {
+        let BoxExit { last, axis: a, t } = exit;
         for k in 0..3 {
             c[k] = if k == a {
                 last[k] + axes.step[k]
@@ -662,7 +665,7 @@ impl Level {
             } else {
                 // Between the ray's cell and the box's last along k: only
                 // rounding could put the exit point outside.
-                self.cell_at(ray, t_exit, k, c[k].min(last[k]), c[k].max(last[k]))
+                self.cell_at(ray, t, k, c[k].min(last[k]), c[k].max(last[k]))
             };
             if c[k] < 0 || c[k] >= self.dims[k] {
                 return false;
@@ -671,6 +674,16 @@ impl Level {
         }
         true
     }
+}
+
+/// Where the ray leaves an empty box ahead of the walk's cell: the box's
+/// last cell along each axis's direction of travel, and the axis and t of
+/// the plane it leaves across.
+#[derive(Clone, Copy)]
+struct BoxExit {
+    last: [i64; 3],
+    axis: usize,
+    t: f64,
 }
 
 #[cfg(test)]
