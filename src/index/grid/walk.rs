@@ -156,19 +156,21 @@ const REGION_SHIFT: u32 = 2 * BLOCK_SHIFT;
 struct Empty {
     shift: u32,
     radius: i64,
-    /// The occupied blocks of the region around the walk's empty block (0
-    /// where the box is no part of an occupied region).
-    region_blocks: u64,
+}
+
+/// The empty space the walk's cell starts: a box crossed in one leap, or an
+/// empty block of an occupied region, whose mask of occupied blocks
+/// [`Level::cross_blocks`] steps over.
+#[derive(Clone, Copy)]
+enum EmptyAhead {
+    Box(Empty),
+    InRegion { blocks: u64 },
 }
 
 impl Empty {
     /// The group of `1 << shift` cells a side holding the walk's cell, alone.
     fn group(shift: u32) -> Self {
-        Empty {
-            shift,
-            radius: 0,
-            region_blocks: 0,
-        }
+        Empty { shift, radius: 0 }
     }
 
     /// Whether the box is the walk's block alone.
@@ -407,21 +409,19 @@ impl Level {
                             bit = cell_bit(c);
                             *block.insert(cells)
                         }
-                        Err(empty) if empty.region_blocks != 0 => {
-                            // An empty block of an occupied region.
-                            let blocks = empty.region_blocks;
+                        Err(EmptyAhead::InRegion { blocks }) => {
                             if !self.cross_blocks(ray, &axes, &mut c, &mut t_next, limit, blocks) {
                                 return;
                             }
                             continue;
                         }
-                        Err(empty) if empty.is_one_block() => {
+                        Err(EmptyAhead::Box(empty)) if empty.is_one_block() => {
                             if !self.step_out_of_block(&axes, &mut c, &mut t_next, limit) {
                                 return;
                             }
                             continue;
                         }
-                        Err(empty) => {
+                        Err(EmptyAhead::Box(empty)) => {
                             if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
                                 return;
                             }
@@ -460,26 +460,24 @@ impl Level {
         b: [i64; 3],
         heading: Heading,
         region: &mut Cached<Region>,
-    ) -> Result<Block, Empty> {
+    ) -> Result<Block, EmptyAhead> {
         let distance = self.occupancy.distance(c, heading);
         if distance > 0 {
-            return Err(Empty {
+            return Err(EmptyAhead::Box(Empty {
                 shift: self.occupancy.shift,
                 radius: i64::from(distance) - 1,
-                region_blocks: 0,
-            });
+            }));
         }
         let region = region.get(block_key(b.map(|v| v >> BLOCK_SHIFT)), |k| {
             self.table.region(k)
         });
         if region.blocks == 0 {
-            return Err(Empty::group(REGION_SHIFT));
+            return Err(EmptyAhead::Box(Empty::group(REGION_SHIFT)));
         }
         let bit = cell_bit(b);
         if !region.holds(bit) {
-            return Err(Empty {
-                region_blocks: region.blocks,
-                ..Empty::group(BLOCK_SHIFT)
+            return Err(EmptyAhead::InRegion {
+                blocks: region.blocks,
             });
         }
         Ok(self.table.block_in(region, bit))
@@ -587,16 +585,17 @@ impl Level {
             if t_exit > limit {
                 return false;
             }
-            let last = [0, 1, 2].map(|k| last_on(k, b[k]));
-            b[a] += axes.step[a];
-            let left_region = b[a] >> BLOCK_SHIFT != region[a];
-            if !left_region && blocks >> cell_bit(b) & 1 == 0 {
+            let mut next = b;
+            next[a] += axes.step[a];
+            let left_region = next[a] >> BLOCK_SHIFT != region[a];
+            if !left_region && blocks >> cell_bit(next) & 1 == 0 {
+                b = next;
                 exits[a] = axes.crossing(a, last_on(a, b[a]));
                 continue;
             }
-            // The blocks crossed since `c` end at the last block's last cells.
+            // The blocks crossed since `c` end at block `b`'s last cells.
             let exit = BoxExit {
-                last,
+                last: [0, 1, 2].map(|k| last_on(k, b[k])),
                 axis: a,
                 t: t_exit,
             };
