@@ -334,9 +334,16 @@ fn to_wide<R: Real>(ray: &Ray<R>) -> Ray<f64> {
 /// (u the unit roundoff). Asking `a·F − b² > a·(MARGIN + 32u·F)` therefore
 /// proves `D > MARGIN·(1 − γ(5))`: the line misses the unit sphere by more
 /// than 1.118 radii. The robust test finds the closest point `l` to within
-/// a few u·|f|, under 0.01 radii in the near frame (`|f| ≤ 8192` in f32),
-/// so it sees `|l| > 1` and a negative discriminant. Overflow to ∞ proves
-/// nothing, so an infinite difference is not taken as a miss.
+/// a few u·|f| (under 8u·|f|: two projections of terms no larger than
+/// `|f|`), under 0.01 radii in the near frame (`|f| ≤ 8192` in f32), so it
+/// sees `|l| > 1` and a negative discriminant. The same holds at any
+/// distance, in either precision, which lets the f64 test of far rays
+/// ([`UnitSphereFrame::intersect_wide`]) use the filter too: the margin
+/// grows with F, so a firing filter also proves `D > 15u·F`, and the true
+/// `|l|` is at least `max(1.118, 3.8·√u·|f|)`; past `|f| = 0.3/√u` the
+/// second term rules, and `3.8·√u·|f| − 8u·|f|` stays above 1.1 (√u is
+/// 2⁻¹² in f32, 2^-26.5 in f64). Overflow to ∞ proves nothing, so an
+/// infinite difference is not taken as a miss.
 #[inline(always)]
 fn line_clearly_misses<R: Real>(a: R, b: R, f_squared: R) -> bool {
     let margin = R::from_f64(1.25);
@@ -407,12 +414,62 @@ impl<R: Real> UnitSphereFrame<R> {
     /// with the interval (so that a root is in it exactly when its `R` is).
     #[inline(never)]
     pub fn intersect_wide(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
-        let wide = UnitSphereFrame::<f64> {
-            center: self.center.to_dvec3(),
-            inv_scale: self.inv_scale.to_dvec3(),
-        };
-        let (near, far, _) = Ellipsoid::<f64>::roots(&wide.local(&to_wide(ray)))?;
+        let (f, f_squared) = self.wide_origin(ray.origin);
+        self.intersect_wide_from(f, f_squared, ray.dir, t_min, t_max)
+    }
+
+    /// A ray origin in the frame, in f64, and its square: all that the f64
+    /// tests of rays from one origin share.
+    #[inline(always)]
+    pub fn wide_origin(&self, origin: V3<R>) -> (glam::DVec3, f64) {
+        let f = (origin.to_dvec3() - self.center.to_dvec3()) * self.inv_scale.to_dvec3();
+        (f, f.dot(f))
+    }
+
+    /// [`Self::intersect_wide`] of the ray along `dir` from the origin that
+    /// [`Self::wide_origin`] gave `(f, f_squared)` for: the operations of
+    /// [`UnitSphereFrame::local`] in f64, so the same bits. The miss filters
+    /// come first, as in the near frame: they hold at any distance
+    /// ([`line_clearly_misses`]), and most far candidates of an index are
+    /// lines that pass them by, which they spare the robust test's
+    /// divisions and root.
+    #[inline(always)]
+    pub fn intersect_wide_from(
+        &self,
+        f: glam::DVec3,
+        f_squared: f64,
+        dir: V3<R>,
+        t_min: R,
+        t_max: R,
+    ) -> Option<R> {
+        let (e, a, b) = self.wide_line(f, f_squared, dir, t_min)?;
+        let (near, far, _) = Ellipsoid::<f64>::roots(&LocalRay::new(f, e, a, b))?;
         first_in(R::from_f64(near), R::from_f64(far), t_min, t_max)
+    }
+
+    /// Whether [`Self::intersect_wide_from`] gets past its miss filters
+    /// (where it returns None at once), for a bundle of rays to ask before
+    /// running the rest for the few that do.
+    #[inline(always)]
+    pub fn wide_filters_pass(&self, f: glam::DVec3, f_squared: f64, dir: V3<R>, t_min: R) -> bool {
+        self.wide_line(f, f_squared, dir, t_min).is_some()
+    }
+
+    /// The ray's direction in the frame, `e`, with `a = e·e` and `b = f·e`,
+    /// in f64; None where the miss filters prove the test finds no root.
+    #[inline(always)]
+    fn wide_line(
+        &self,
+        f: glam::DVec3,
+        f_squared: f64,
+        dir: V3<R>,
+        t_min: R,
+    ) -> Option<(glam::DVec3, f64, f64)> {
+        let e = dir.to_dvec3() * self.inv_scale.to_dvec3();
+        let (a, b) = (e.dot(e), f.dot(e));
+        let missed = line_clearly_misses(a, b, f_squared)
+            || leaves_from_outside(b, f_squared, t_min.to_f64());
+        (!missed).then_some((e, a, b))
     }
 }
 
@@ -627,6 +684,82 @@ mod tests {
     #[test]
     fn leaving_from_outside_never_skips_a_hit_in_f64() {
         leaving_from_outside_never_skips_a_hit::<f64>();
+    }
+
+    /// The f64 test of far rays without its miss filters: the robust roots
+    /// alone.
+    fn robust_wide<R: Real>(
+        frame: &UnitSphereFrame<R>,
+        ray: &Ray<R>,
+        t_min: R,
+        t_max: R,
+    ) -> Option<R> {
+        let wide = UnitSphereFrame::<f64> {
+            center: frame.center.to_dvec3(),
+            inv_scale: frame.inv_scale.to_dvec3(),
+        };
+        let (near, far, _) = Ellipsoid::<f64>::roots(&wide.local(&to_wide(ray)))?;
+        first_in(R::from_f64(near), R::from_f64(far), t_min, t_max)
+    }
+
+    /// Rays from 8192 to 10¹⁵ radii away (where the test runs in f64) from
+    /// ellipsoids at random extreme scales, aimed within a radius of the
+    /// centre or passing up to as far from it as they start, toward it or
+    /// away: the far test with its filters answers exactly what the robust
+    /// roots alone answer, and the miss filter fires on two lines in five.
+    fn the_far_test_answers_as_its_robust_roots<R: Real>() {
+        let mut rng = crate::rng::Rng::new(0xfa2_7e57);
+        let (mut filtered, mut hits) = (0u32, 0u32);
+        for _ in 0..200_000 {
+            let (centre, scale) = random_ellipsoid(&mut rng);
+            let distance = 10f64.powf(rng.range(3.92, 15.0));
+            let from = unit_vector(&mut rng) * distance;
+            let pass = unit_vector(&mut rng)
+                * if rng.range(0.0, 1.0) < 0.4 {
+                    rng.range(0.0, 1.0)
+                } else {
+                    10f64.powf(rng.range(-0.05, distance.log10()))
+                };
+            let toward = if rng.range(0.0, 1.0) < 0.8 { 1.0 } else { -1.0 };
+            let origin = centre + from * scale;
+            let dir = ((pass - from) * scale * toward).normalize();
+            let frame =
+                Ellipsoid::<R>::new(V3::<R>::from_dvec3(centre), V3::<R>::from_dvec3(scale))
+                    .frame();
+            let ray = Ray::new(V3::<R>::from_dvec3(origin), V3::<R>::from_dvec3(dir));
+            let (t_min, t_max) = if rng.range(0.0, 1.0) < 0.5 {
+                (R::zero(), R::infinity())
+            } else {
+                let t = R::from_f64(distance * scale.max_element() * rng.range(0.0, 2.0));
+                (t * R::from_f64(rng.range(0.0, 1.0)), t)
+            };
+            let answer = frame.intersect_wide(&ray, t_min, t_max);
+            let robust = robust_wide(&frame, &ray, t_min, t_max);
+            assert_eq!(
+                answer.map(|t| Real::to_f64(t).to_bits()),
+                robust.map(|t| Real::to_f64(t).to_bits()),
+                "centre {centre}, scale {scale}, origin {origin}, dir {dir}, t in ({t_min:?}, {t_max:?})"
+            );
+            hits += u32::from(robust.is_some());
+            let wide = UnitSphereFrame::<f64> {
+                center: frame.center.to_dvec3(),
+                inv_scale: frame.inv_scale.to_dvec3(),
+            };
+            let local = wide.local(&to_wide(&ray));
+            filtered += u32::from(line_clearly_misses(local.a, local.b, local.f.dot(local.f)));
+        }
+        assert!(hits > 10_000, "{hits} hits: the cases must include hits");
+        assert!(filtered > 80_000, "the miss filter fired {filtered} times");
+    }
+
+    #[test]
+    fn the_far_test_answers_as_its_robust_roots_in_f32() {
+        the_far_test_answers_as_its_robust_roots::<f32>();
+    }
+
+    #[test]
+    fn the_far_test_answers_as_its_robust_roots_in_f64() {
+        the_far_test_answers_as_its_robust_roots::<f64>();
     }
 
     /// The centre and scale of an ellipsoid of size 10^[−6, 6] (axes up to

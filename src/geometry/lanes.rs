@@ -38,17 +38,40 @@ pub fn hits_from_one_origin<R: Real>(
     let ff = f.dot(f);
     let mut found = [R::nan(); LANES];
     if ff > R::NEAR_FRAME {
-        for (i, t) in found.iter_mut().enumerate() {
-            let ray = Ray::new(origin, lane(dir, i));
-            *t = frame
-                .intersect_wide(&ray, t_min, cap[i])
-                .unwrap_or(R::nan());
-        }
+        wide_lanes(frame, origin, dir, t_min, cap, &mut found);
     } else {
         let (f, c) = ([f.x(), f.y(), f.z()], ff - R::one());
         near_lanes(frame, |_| (f, c), dir, t_min, cap, &mut found);
     }
     found
+}
+
+/// [`UnitSphereFrame::intersect_wide`] lane by lane, for rays from one
+/// origin: the origin's frame coordinates in f64 are found once for all
+/// the lanes, and every lane asks the miss filters before the few they let
+/// pass run the rest. Out of line, as the one-ray f64 test is: it is for
+/// spheres seen from thousands of radii away.
+#[inline(never)]
+fn wide_lanes<R: Real>(
+    frame: &UnitSphereFrame<R>,
+    origin: V3<R>,
+    dir: &LaneVectors<R>,
+    t_min: R,
+    cap: &[R; LANES],
+    found: &mut [R; LANES],
+) {
+    let (f, f_squared) = frame.wide_origin(origin);
+    let mut open = 0u32;
+    for i in 0..LANES {
+        open |= u32::from(frame.wide_filters_pass(f, f_squared, lane(dir, i), t_min)) << i;
+    }
+    while open != 0 {
+        let i = open.trailing_zeros() as usize;
+        open &= open - 1;
+        found[i] = frame
+            .intersect_wide_from(f, f_squared, lane(dir, i), t_min, cap[i])
+            .unwrap_or(R::nan());
+    }
 }
 
 /// Which of the segments `origin[i] + t·dir[i]`, t in (0, 1), meet the
