@@ -702,12 +702,17 @@ mod tests {
         t_min: R,
         t_max: R,
     ) -> Option<R> {
+        let (near, far, _) = Ellipsoid::<f64>::roots(&wide_local(frame, ray))?;
+        first_in(R::from_f64(near), R::from_f64(far), t_min, t_max)
+    }
+
+    /// The ray in the frame, both read in f64.
+    fn wide_local<R: Real>(frame: &UnitSphereFrame<R>, ray: &Ray<R>) -> LocalRay<f64> {
         let wide = UnitSphereFrame::<f64> {
             center: frame.center.to_dvec3(),
             inv_scale: frame.inv_scale.to_dvec3(),
         };
-        let (near, far, _) = Ellipsoid::<f64>::roots(&wide.local(&to_wide(ray)))?;
-        first_in(R::from_f64(near), R::from_f64(far), t_min, t_max)
+        wide.local(&to_wide(ray))
     }
 
     /// Rays from 8192 to 10¹⁵ radii away (where the test runs in f64) from
@@ -754,11 +759,7 @@ mod tests {
                 );
             }
             hits += u32::from(robust.is_some());
-            let wide = UnitSphereFrame::<f64> {
-                center: frame.center.to_dvec3(),
-                inv_scale: frame.inv_scale.to_dvec3(),
-            };
-            let local = wide.local(&to_wide(&ray));
+            let local = wide_local(&frame, &ray);
             filtered += u32::from(line_clearly_misses(local.a, local.b, local.f.dot(local.f)));
         }
         assert!(hits > 10_000, "{hits} hits: the cases must include hits");
