@@ -429,7 +429,7 @@ impl<R: Real> UnitSphereFrame<R> {
     /// A ray origin in the frame, in f64, and its square: all that the f64
     /// tests of rays from one origin share.
     #[inline(always)]
-    pub fn wide_origin(&self, origin: V3<R>) -> (glam::DVec3, f64) {
+    pub(super) fn wide_origin(&self, origin: V3<R>) -> (glam::DVec3, f64) {
         let f = (origin.to_dvec3() - self.center.to_dvec3()) * self.inv_scale.to_dvec3();
         (f, f.dot(f))
     }
@@ -442,7 +442,7 @@ impl<R: Real> UnitSphereFrame<R> {
     /// lines that pass them by, which they spare the robust test's
     /// divisions and root.
     #[inline(always)]
-    pub fn intersect_wide_from(
+    pub(super) fn intersect_wide_from(
         &self,
         f: glam::DVec3,
         f_squared: f64,
@@ -459,7 +459,13 @@ impl<R: Real> UnitSphereFrame<R> {
     /// (where it returns None at once), for a bundle of rays to ask before
     /// running the rest for the few that do.
     #[inline(always)]
-    pub fn wide_filters_pass(&self, f: glam::DVec3, f_squared: f64, dir: V3<R>, t_min: R) -> bool {
+    pub(super) fn wide_filters_pass(
+        &self,
+        f: glam::DVec3,
+        f_squared: f64,
+        dir: V3<R>,
+        t_min: R,
+    ) -> bool {
         self.wide_line(f, f_squared, dir, t_min).is_some()
     }
 

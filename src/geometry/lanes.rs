@@ -49,8 +49,9 @@ pub fn hits_from_one_origin<R: Real>(
 /// [`UnitSphereFrame::intersect_wide`] lane by lane, for rays from one
 /// origin: the origin's frame coordinates in f64 are found once for all
 /// the lanes, and every lane asks the miss filters before the few they let
-/// pass run the rest. Out of line, as the one-ray f64 test is: it is for
-/// spheres seen from thousands of radii away.
+/// pass run the whole test (which asks them again: cheaper than carrying
+/// each lane's `e`, `a` and `b` from the first pass). Out of line, as the
+/// one-ray f64 test is: it is for spheres seen from thousands of radii away.
 #[inline(never)]
 fn wide_lanes<R: Real>(
     frame: &UnitSphereFrame<R>,
