@@ -51,11 +51,14 @@ pub(super) struct Packet {
     pub rays: [Ray64; RAYS],
     /// The rays' unit directions, for the choice of axis and the cones.
     pub unit: [DVec3; RAYS],
+    /// `1 / |d|` per ray: a t per unit of distance along it.
+    inv_length: [f64; RAYS],
     /// An axis every ray travels along in the same direction.
     axis: usize,
     step: i64,
     /// Per ray, how far it moves across the slabs per unit along `axis`: on
-    /// the two other axes (`axis + 1`, `axis + 2`, mod 3), `d_u / d_axis`.
+    /// the two other axes (`axis + 1`, `axis + 2`, mod 3), `d_u / d_axis`,
+    /// computed as `d_u · (1 / d_axis)`.
     slope: [[f64; RAYS]; 2],
     /// Per ray, where it crosses a plane across the slabs relative to where
     /// a ray with its slopes from `origin` would, per cross axis: with δ its
@@ -96,6 +99,7 @@ impl Packet {
             origin: [0.0; 3],
             rays: [Ray64::default(); RAYS],
             unit: [DVec3::ZERO; RAYS],
+            inv_length: [0.0; RAYS],
             axis: 0,
             step: 1,
             slope: [[0.0; RAYS]; 2],
@@ -110,8 +114,14 @@ impl Packet {
     /// near `origin`; false when they share no axis of travel (those rays
     /// go one at a time). Reused packet after packet, as it is large.
     pub fn aim(&mut self, origin: [f64; 3]) -> bool {
-        for (unit, r) in self.unit.iter_mut().zip(&self.rays) {
-            *unit = DVec3::from_array(r.d) / r.length;
+        // A reciprocal and products where a division each would do: the
+        // cones widen their angle far beyond the rounding this adds, and the
+        // cells' pad covers the walk's f64 rounding many times over.
+        for ((unit, inv_length), r) in
+            (self.unit.iter_mut().zip(&mut self.inv_length)).zip(&self.rays)
+        {
+            *inv_length = 1.0 / r.length;
+            *unit = DVec3::from_array(r.d) * *inv_length;
         }
         // How steeply the shallowest ray travels along each axis (0 when
         // some ray runs parallel to it or the other way), from whether all
@@ -139,8 +149,9 @@ impl Packet {
             .max_by(|&a, &b| steepness[a].total_cmp(&steepness[b]))
             .unwrap_or(0);
         // No axis every ray travels the same way (never NaN: `lesser`
-        // keeps the least slant a number).
-        if steepness[axis] <= 0.0 {
+        // keeps the least slant a number), or one along which a ray moves
+        // so little that its reciprocal overflowed (the slopes need it).
+        if steepness[axis] <= 0.0 || !self.rays.iter().all(|r| r.inv[axis].is_finite()) {
             return false;
         }
         self.origin = origin;
@@ -149,7 +160,7 @@ impl Packet {
         for j in 0..2 {
             let u = (axis + 1 + j) % 3;
             for (m, r) in self.slope[j].iter_mut().zip(&self.rays) {
-                *m = r.d[u] / r.d[axis];
+                *m = r.d[u] * r.inv[axis];
             }
         }
         self.measure_offsets();
@@ -446,7 +457,7 @@ impl Level {
         mut visit: impl FnMut(&[u32], &mut S, u64),
     ) -> bool {
         let (k, step) = (packet.axis, packet.step);
-        let slack: [f64; RAYS] = packet.rays.each_ref().map(|r| self.slack / r.length);
+        let slack: [f64; RAYS] = packet.inv_length.map(|inv| self.slack * inv);
         let t_lo = rays.t_min();
         // Each ray's exit from the level's box (widened by the slack), and
         // the first and last slab any ray is in, counted along the travel.
