@@ -381,8 +381,7 @@ impl Gate {
         let Some((first, last)) = self.layers_ahead(packet) else {
             return PacketSpans::NOWHERE;
         };
-        let layers = (last - first).abs() + 1;
-        if layers > PACKET_LAYERS {
+        if (last - first).abs() + 1 > PACKET_LAYERS {
             return everywhere;
         }
         // Each layer's rectangle, between the planes it lies between.
@@ -391,19 +390,53 @@ impl Gate {
         let plane = |i: i64| self.origin[k] + i as f64 * self.side - packet.origin[k];
         // Per slot, the first and last layer where the packet meets its cubes.
         let mut met_in: [Option<(i64, i64)>; SLOTS] = [None; SLOTS];
+        let heading = Heading::of(std::array::from_fn(|a| {
+            if a == k {
+                step
+            } else {
+                Self::sign_of(packet.unit[0][a])
+            }
+        }));
         // Layer s lies between planes s and s + 1, which ever comes first.
         let mut entry = cubes.at(&range, plane(first + i64::from(step < 0)));
-        for s in (0..layers).map(|n| first + n * step) {
+        let mut s = first;
+        while (last - s) * step >= 0 {
             let exit = cubes.at(&range, plane(s + i64::from(step > 0)));
             let rect = Rect::between(&entry, &exit);
-            entry = exit;
-            let Some(met) = self.met_within(k, s, &rect) else {
+            let Some(clear) = self.clear_within(k, s, &rect, heading) else {
                 return everywhere;
             };
-            for slot in set_bits(u64::from(met)) {
-                let (from, _) = met_in[slot].unwrap_or((s, s));
-                met_in[slot] = Some((from, s));
+            if clear >= 2 {
+                // Every cube up to `clear − 1` layers ahead of the rectangle's,
+                // and as far across it along the heading, is unmarked: leap
+                // over those layers where the rays stay within that reach.
+                let ahead = i64::from(clear) - 1;
+                let far = s + ahead * step;
+                let far = if step > 0 {
+                    far.min(last)
+                } else {
+                    far.max(last)
+                };
+                let far_exit = cubes.at(&range, plane(far + i64::from(step > 0)));
+                let across = Rect::between(&entry, &far_exit);
+                if Self::within_reach(&rect, &across, ahead, heading, k) {
+                    entry = far_exit;
+                    s = far + step;
+                    continue;
+                }
             }
+            entry = exit;
+            // A rectangle of unmarked cubes meets no level.
+            if clear == 0 {
+                let Some(met) = self.met_within(k, s, &rect) else {
+                    return everywhere;
+                };
+                for slot in set_bits(u64::from(met)) {
+                    let (from, _) = met_in[slot].unwrap_or((s, s));
+                    met_in[slot] = Some((from, s));
+                }
+            }
+            s += step;
         }
         // Layer s lies between planes s and s + 1: coordinates times the
         // step, the lesser first.
@@ -455,6 +488,53 @@ impl Gate {
             }
         }
         Some(met)
+    }
+
+    /// −1 for a negative `x`, else 1: the heading an axis counts as.
+    fn sign_of(x: f64) -> i64 {
+        if x < 0.0 {
+            -1
+        } else {
+            1
+        }
+    }
+
+    /// The least distance of the clouds along `heading` over the cubes of
+    /// layer `s` across axis `k` within `rect`: 0 where one of them is
+    /// marked, else `n ≥ 1` such that every cube ahead of one of them along
+    /// the heading within chessboard distance `n − 1` is unmarked. None
+    /// where the rectangle spans more than [`PACKET_CUBES`] cubes.
+    fn clear_within(&self, k: usize, s: i64, rect: &Rect, heading: Heading) -> Option<u8> {
+        let (lo, hi) = (rect.lo, rect.hi);
+        if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
+            return None;
+        }
+        let [u, v] = [(k + 1) % 3, (k + 2) % 3];
+        let mut c = [s; 3];
+        let mut clear = u8::MAX;
+        for cu in lo[0]..=hi[0] {
+            for cv in lo[1]..=hi[1] {
+                (c[u], c[v]) = (cu, cv);
+                clear = clear.min(self.clouds.distance(c, heading));
+            }
+        }
+        Some(clear)
+    }
+
+    /// Whether the rectangle `across` lies within `ahead` cubes of `rect`
+    /// along `heading` on both axes across `k` (and nowhere behind it).
+    /// The boxes of side `ahead + 1` ahead of `rect`'s cubes then cover
+    /// every cube of `across` in the layers they reach: a cube up to
+    /// `ahead` beyond `rect` on an axis lies that far ahead of `rect`'s
+    /// last cube there, one within it ahead of itself.
+    fn within_reach(rect: &Rect, across: &Rect, ahead: i64, heading: Heading, k: usize) -> bool {
+        (0..2).all(|j| {
+            if heading.sign((k + 1 + j) % 3) > 0 {
+                across.lo[j] >= rect.lo[j] && across.hi[j] <= rect.hi[j] + ahead
+            } else {
+                across.hi[j] <= rect.hi[j] && across.lo[j] >= rect.lo[j] - ahead
+            }
+        })
     }
 
     /// A bound on the rounding of the gate walk's t, with room: each t is a

@@ -59,7 +59,7 @@ impl Heading {
     }
 
     /// The direction (−1 or 1) this heading moves along `axis`.
-    fn sign(self, axis: usize) -> i64 {
+    pub fn sign(self, axis: usize) -> i64 {
         if self.0 >> axis & 1 == 1 {
             1
         } else {
