@@ -367,6 +367,10 @@ impl Gate {
     /// widened by the levels' slack and by a cube against their own
     /// rounding. A level in a clump of its own is walked over that clump's
     /// layers only, not wherever the packet meets another level's cubes.
+    /// Where a layer's rectangle holds only unmarked cubes, the gate's
+    /// clouds along the packet's heading say how far unmarked space reaches
+    /// ahead of them, and the layers the rays cross within that reach are
+    /// passed in one step ([`Gate::within_reach`]).
     #[inline(never)]
     pub fn packet_spans(&self, packet: &Packet, t_min: f64) -> PacketSpans {
         let everywhere = PacketSpans::EVERYWHERE;
@@ -390,6 +394,8 @@ impl Gate {
         let plane = |i: i64| self.origin[k] + i as f64 * self.side - packet.origin[k];
         // Per slot, the first and last layer where the packet meets its cubes.
         let mut met_in: [Option<(i64, i64)>; SLOTS] = [None; SLOTS];
+        // The first ray's heading: a leap checks that every ray stays within
+        // the reach of the boxes ahead along it, whichever way the others go.
         let heading = Heading::of(std::array::from_fn(|a| {
             if a == k {
                 step
