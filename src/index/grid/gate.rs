@@ -479,21 +479,35 @@ impl Gate {
     /// `rect` (cubes within the lattice), joined; None where the rectangle
     /// spans more than [`PACKET_CUBES`] cubes.
     fn met_within(&self, k: usize, s: i64, rect: &Rect) -> Option<u8> {
+        // The clouds' groups are the cubes, in the same order.
+        Self::fold_layer(k, s, rect, 0, |met, c| met | self.met[self.clouds.index(c)])
+    }
+
+    /// `f` folded over the cubes of layer `s` across axis `k` within `rect`,
+    /// from `init`; None where the rectangle spans more than
+    /// [`PACKET_CUBES`] cubes.
+    #[inline(always)]
+    fn fold_layer<T>(
+        k: usize,
+        s: i64,
+        rect: &Rect,
+        init: T,
+        mut f: impl FnMut(T, [i64; 3]) -> T,
+    ) -> Option<T> {
         let (lo, hi) = (rect.lo, rect.hi);
         if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
             return None;
         }
         let [u, v] = [(k + 1) % 3, (k + 2) % 3];
         let mut c = [s; 3];
-        let mut met = 0;
+        let mut acc = init;
         for cu in lo[0]..=hi[0] {
             for cv in lo[1]..=hi[1] {
                 (c[u], c[v]) = (cu, cv);
-                // The clouds' groups are the cubes, in the same order.
-                met |= self.met[self.clouds.index(c)];
+                acc = f(acc, c);
             }
         }
-        Some(met)
+        Some(acc)
     }
 
     /// −1 for a negative `x`, else 1: the heading an axis counts as.
@@ -511,20 +525,9 @@ impl Gate {
     /// the heading within chessboard distance `n − 1` is unmarked. None
     /// where the rectangle spans more than [`PACKET_CUBES`] cubes.
     fn clear_within(&self, k: usize, s: i64, rect: &Rect, heading: Heading) -> Option<u8> {
-        let (lo, hi) = (rect.lo, rect.hi);
-        if (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) > PACKET_CUBES {
-            return None;
-        }
-        let [u, v] = [(k + 1) % 3, (k + 2) % 3];
-        let mut c = [s; 3];
-        let mut clear = u8::MAX;
-        for cu in lo[0]..=hi[0] {
-            for cv in lo[1]..=hi[1] {
-                (c[u], c[v]) = (cu, cv);
-                clear = clear.min(self.clouds.distance(c, heading));
-            }
-        }
-        Some(clear)
+        Self::fold_layer(k, s, rect, u8::MAX, |clear, c| {
+            clear.min(self.clouds.distance(c, heading))
+        })
     }
 
     /// Whether the rectangle `across` lies within `ahead` cubes of `rect`
