@@ -59,6 +59,12 @@ fn slot(i: usize) -> usize {
     i.min(SLOTS - 1)
 }
 
+/// −1, 0 or 1 as a direction's component goes down, nowhere or up an axis.
+#[inline(always)]
+fn step_of(d: f64) -> i64 {
+    i64::from(d > 0.0) - i64::from(d < 0.0)
+}
+
 /// Bytes a gate holds per cube: a proximity cloud's byte per heading, and
 /// the mask of the levels whose cells meet it.
 pub const BYTES_PER_CUBE: usize = HEADINGS + 1;
@@ -292,7 +298,6 @@ impl Gate {
             return Some(t_lo);
         }
         let (t0, t1) = self.clip(ray, t_lo, t_hi)?;
-        let step_of = |d: f64| (d > 0.0) as i64 - (d < 0.0) as i64;
         let step = [step_of(ray.d[0]), step_of(ray.d[1]), step_of(ray.d[2])];
         let heading = Heading::of(step);
         // The t at which the ray leaves cube index i on axis a (+∞ if never).
@@ -396,13 +401,8 @@ impl Gate {
         let mut met_in: [Option<(i64, i64)>; SLOTS] = [None; SLOTS];
         // The first ray's heading: a leap checks that every ray stays within
         // the reach of the boxes ahead along it, whichever way the others go.
-        let heading = Heading::of(std::array::from_fn(|a| {
-            if a == k {
-                step
-            } else {
-                Self::sign_of(packet.unit[0][a])
-            }
-        }));
+        let lead = packet.unit[0];
+        let heading = Heading::of([step_of(lead.x), step_of(lead.y), step_of(lead.z)]);
         // Layer s lies between planes s and s + 1, which ever comes first.
         let mut entry = cubes.at(&range, plane(first + i64::from(step < 0)));
         let mut s = first;
@@ -508,15 +508,6 @@ impl Gate {
             }
         }
         Some(acc)
-    }
-
-    /// −1 for a negative `x`, else 1: the heading an axis counts as.
-    fn sign_of(x: f64) -> i64 {
-        if x < 0.0 {
-            -1
-        } else {
-            1
-        }
     }
 
     /// The least distance of the clouds along `heading` over the cubes of
