@@ -9,7 +9,9 @@ then with user-geometry spheres (`--user-spheres`); Embree's better figure of
 the two counts for each column, as its README advises. Prints, per scene and
 column, voxtrace's and Embree's medians and the ratio voxtrace / Embree of each
 repetition's pair: median, min and max. voxtrace's build is the grid's plus
-its light buffers' (`build_s + light_buffer_s`). Embree's benchmark is built from
+its light buffers' (`build_s + light_buffer_s`), and its bytes a sphere are
+given as the grid's plus the buffers' (`index_bytes_per_sphere +
+light_buffer_bytes_per_sphere`). Embree's benchmark is built from
 `../shared/peers` (see its README) into target/peers/embree_bench.
 """
 import argparse
@@ -58,8 +60,9 @@ def main():
     ap.add_argument("--voxtrace", default="target/release/voxtrace")
     ap.add_argument("--embree", default="target/peers/embree_bench")
     a = ap.parse_args()
-    print("| scene | spheres | build s (voxtrace / Embree) | column | voxtrace Mrays/s | Embree Mrays/s | ratio median | ratio min–max |")
-    print("|---|---:|---:|---|---:|---:|---:|---:|")
+    print("| scene | spheres | build s (voxtrace / Embree) | voxtrace bytes a sphere (grid + buffers) "
+          "| column | voxtrace Mrays/s | Embree Mrays/s | ratio median | ratio min–max |")
+    print("|---|---:|---:|---:|---|---:|---:|---:|---:|")
     for scene in a.scenes:
         runs = []
         for _ in range(a.reps):
@@ -74,11 +77,13 @@ def main():
         spheres = runs[0][0]["spheres"]
         build = f"{statistics.median(r[0]['build_s'] + r[0]['light_buffer_s'] for r in runs):.3f} / " \
                 f"{statistics.median(r[1]['build_s'] for r in runs):.3f}"
+        first = runs[0][0]
+        size = f"{first['index_bytes_per_sphere']:.1f} + {first['light_buffer_bytes_per_sphere']:.1f}"
         for name, vk, ek in COLUMNS:
             ours = [r[0][vk] for r in runs]
             theirs = [r[1][ek] for r in runs]
             ratios = [o / t for o, t in zip(ours, theirs)]
-            print(f"| {scene} | {spheres} | {build} | {name} | {statistics.median(ours):.2f} | "
+            print(f"| {scene} | {spheres} | {build} | {size} | {name} | {statistics.median(ours):.2f} | "
                   f"{statistics.median(theirs):.2f} | **{statistics.median(ratios):.2f}** | "
                   f"{min(ratios):.2f}–{max(ratios):.2f} |")
             sys.stdout.flush()
