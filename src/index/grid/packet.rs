@@ -182,7 +182,7 @@ fn aim_eye_packet<R: Real>(packet: &mut Packet, origin: V3<R>, dirs: &[V3<R>; RA
             None => return false,
         }
     }
-    packet.aim(origin.to_dvec3().to_array())
+    packet.aim_tile(origin.to_dvec3().to_array())
 }
 
 impl<R: Real> VoxelHashGrid<R> {

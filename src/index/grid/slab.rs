@@ -71,7 +71,16 @@ pub(super) struct Packet {
     lead: [f64; RAYS],
     /// The largest `|δ|` (widened).
     spread: f64,
+    /// Whether the rays are a tile of eye rays from the origin, as the
+    /// renderer hands them ([`crate::render::tiles`]: quarter by quarter,
+    /// each row by row), so that the rays at [`TILE_CORNERS`] have the least
+    /// and greatest slopes. A hint for the walk: it changes work, not answers.
+    tile: bool,
 }
+
+/// The rays at a tile's four corners: the first of the first quarter, the
+/// fourth of the second, the thirteenth of the third, the last of the last.
+const TILE_CORNERS: [usize; 4] = [0, 19, 44, 63];
 
 /// Relative widening of the start offsets against their own rounding: a
 /// few f64 roundings of values themselves a few f32 units of the origin.
@@ -107,6 +116,7 @@ impl Packet {
             offset_hi: [[0.0; RAYS]; 2],
             lead: [0.0; RAYS],
             spread: 0.0,
+            tile: false,
         }
     }
 
@@ -114,6 +124,7 @@ impl Packet {
     /// near `origin`; false when they share no axis of travel (those rays
     /// go one at a time). Reused packet after packet, as it is large.
     pub fn aim(&mut self, origin: [f64; 3]) -> bool {
+        self.tile = false;
         // A reciprocal and products where a division each would do: the
         // cones widen their angle far beyond the rounding this adds, and the
         // cells' pad covers the walk's f64 rounding many times over.
@@ -167,6 +178,14 @@ impl Packet {
         true
     }
 
+    /// [`Packet::aim`] for a tile of eye rays from `origin` (see
+    /// [`Packet::tile`]).
+    pub fn aim_tile(&mut self, origin: [f64; 3]) -> bool {
+        let aimed = self.aim(origin);
+        self.tile = aimed && self.spread == 0.0;
+        aimed
+    }
+
     /// Fills in how far each ray starts from the origin (see the fields).
     fn measure_offsets(&mut self) {
         let widen = |x: f64| x.abs() * OFFSET_MARGIN;
@@ -210,6 +229,24 @@ impl Packet {
     /// The two axes across the slabs.
     fn cross(&self) -> [usize; 2] {
         [(self.axis + 1) % 3, (self.axis + 2) % 3]
+    }
+
+    /// The least and greatest slopes of the rays at [`TILE_CORNERS`], per
+    /// cross axis: those of every ray of a tile ([`Packet::tile`]).
+    fn corner_slopes(&self) -> SlopeRange {
+        let mut range = SlopeRange {
+            lo: [f64::INFINITY; 2],
+            hi: [f64::NEG_INFINITY; 2],
+            offset_lo: [0.0; 2],
+            offset_hi: [0.0; 2],
+        };
+        for i in TILE_CORNERS {
+            for j in 0..2 {
+                range.lo[j] = lesser(range.lo[j], self.slope[j][i]);
+                range.hi[j] = greater(range.hi[j], self.slope[j][i]);
+            }
+        }
+        range
     }
 
     /// The least and greatest slope and start offset of the rays in `live`,
@@ -461,25 +498,19 @@ impl Level {
         let t_lo = rays.t_min();
         // Each ray's exit from the level's box (widened by the slack), and
         // the first and last slab any ray is in, counted along the travel.
+        // A tile whose corner rays stay within the box's sides between its
+        // two planes across the axis leaves it through those planes: the two
+        // give each ray's span in the box, for a third of the work. Should a
+        // ray leave through a side after all, its span only runs on past the
+        // box, and the walk goes on through the edge cells (the rectangles
+        // keep to the level): more cells, never fewer, so the same answers.
         let mut exit = [f64::NEG_INFINITY; RAYS];
-        let mut live = 0u64;
-        // The rays' first and last points along the axis, times `step` (exact):
-        // the slab of a point is monotone in its coordinate, so the extreme
-        // points give the extreme slabs, with two look-ups instead of two a ray.
-        let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
-        let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step as f64;
-        for i in set_bits(among) {
-            let ray = &packet.rays[i];
-            let reach = rays.reach(i) + slack[i];
-            let Some((a, b)) = self.clip(ray, t_lo - slack[i], reach) else {
-                continue;
-            };
-            exit[i] = b;
-            live |= 1 << i;
-            let (pa, pb) = (along(ray, a), along(ray, b));
-            first_along = lesser(first_along, pa);
-            last_along = greater(last_along, pb);
-        }
+        let across_only = packet.tile && self.holds_between_planes(packet);
+        let (live, first_along, last_along) = if across_only {
+            self.enter_box::<true>(packet, |i| rays.reach(i), among, t_lo, &slack, &mut exit)
+        } else {
+            self.enter_box::<false>(packet, |i| rays.reach(i), among, t_lo, &slack, &mut exit)
+        };
         let first_along = greater(first_along, limits.along[0]);
         let last_along = lesser(last_along, limits.along[1]);
         if live == 0 || first_along > last_along {
@@ -577,6 +608,74 @@ impl Level {
             }
         }
         true
+    }
+
+    /// Clips each ray among `among` to the level's box (to its two planes
+    /// across the packet's axis alone if `ACROSS`) within its search from
+    /// `t_lo` to `reach`, both widened by its `slack`, and writes where it
+    /// leaves to `exit`. Returns the rays that meet the box, and their
+    /// first and last points along the axis times its step: the slab of a
+    /// point is monotone in its coordinate, so the extreme points give the
+    /// extreme slabs, with two look-ups instead of two a ray.
+    #[inline(always)]
+    fn enter_box<const ACROSS: bool>(
+        &self,
+        packet: &Packet,
+        reach: impl Fn(usize) -> f64,
+        among: u64,
+        t_lo: f64,
+        slack: &[f64; RAYS],
+        exit: &mut [f64; RAYS],
+    ) -> (u64, f64, f64) {
+        let (k, step) = (packet.axis, packet.step as f64);
+        let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step;
+        let mut live = 0u64;
+        let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
+        for i in set_bits(among) {
+            let ray = &packet.rays[i];
+            let (from, to) = (t_lo - slack[i], reach(i) + slack[i]);
+            let clipped = if ACROSS {
+                self.clip_across(ray, k, from, to)
+            } else {
+                self.clip(ray, from, to)
+            };
+            let Some((a, b)) = clipped else {
+                continue;
+            };
+            exit[i] = b;
+            live |= 1 << i;
+            first_along = lesser(first_along, along(ray, a));
+            last_along = greater(last_along, along(ray, b));
+        }
+        (live, first_along, last_along)
+    }
+
+    /// Whether the rays from the packet's origin with its corner rays'
+    /// slopes ([`Packet::corner_slopes`]) stay within this level's box on
+    /// the two cross axes between the box's planes across the packet's axis
+    /// (or from the origin on, where that lies between them). The cross
+    /// coordinates are affine in the distance travelled along the axis, so
+    /// the extremes lie at the two ends and the extreme slopes.
+    fn holds_between_planes(&self, packet: &Packet) -> bool {
+        let range = packet.corner_slopes();
+        let (k, step) = (packet.axis, packet.step as f64);
+        let o = packet.origin;
+        let (entry, exit) = if step > 0.0 {
+            (self.origin[k], self.far[k])
+        } else {
+            (self.far[k], self.origin[k])
+        };
+        let ends = [greater(0.0, (entry - o[k]) * step), (exit - o[k]) * step];
+        (0..2).all(|j| {
+            let u = (k + 1 + j) % 3;
+            ends.iter().all(|&travel| {
+                let (a, b) = (
+                    o[u] + travel * step * range.lo[j],
+                    o[u] + travel * step * range.hi[j],
+                );
+                lesser(a, b) >= self.origin[u] && greater(a, b) <= self.far[u]
+            })
+        })
     }
 
     /// Fetches the blocks of a layer's rectangle into `layer`, once for all

@@ -286,6 +286,27 @@ impl Level {
         clip_to_box(&self.origin.to_array(), &self.far, ray, t_lo, t_hi)
     }
 
+    /// The part of [t_lo, t_hi] the ray spends between the two planes of
+    /// this level's box across `axis`, along which it moves (its reciprocal
+    /// there is finite): [`clip_to_box`] on that axis alone, so a part of
+    /// the ray's span in the box, and the whole of it where the ray leaves
+    /// the box through no other plane.
+    #[inline(always)]
+    pub(super) fn clip_across(
+        &self,
+        ray: &Ray64,
+        axis: usize,
+        t_lo: f64,
+        t_hi: f64,
+    ) -> Option<(f64, f64)> {
+        let up = ray.inv[axis] >= 0.0;
+        let (lo, hi) = (self.origin[axis], self.far[axis]);
+        let (near, far) = if up { (lo, hi) } else { (hi, lo) };
+        let t0 = greater(t_lo, (near - ray.o[axis]) * ray.inv[axis]);
+        let t1 = lesser(t_hi, (far - ray.o[axis]) * ray.inv[axis]);
+        (t0 <= t1).then_some((t0, t1))
+    }
+
     /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.
     #[inline(always)]
     pub(super) fn cell_at(&self, ray: &Ray64, t: f64, axis: usize, lo: i64, hi: i64) -> i64 {
