@@ -830,3 +830,72 @@ pub(super) fn set_bits(mut mask: u64) -> impl Iterator<Item = usize> {
         })
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::index::grid::tests::scattered;
+    use crate::index::grid::VoxelHashGrid;
+    use crate::rng::Rng;
+    use glam::Vec3;
+
+    /// Aims `packet` at a tile of eye rays from `eye` toward `aim`, `pixel`
+    /// apart, in the renderer's order: quarter by quarter, each row by row.
+    fn aim_tile(packet: &mut Packet, eye: DVec3, aim: DVec3, pixel: f64) -> bool {
+        let forward = (aim - eye).normalize();
+        let right = forward.any_orthonormal_vector();
+        let up = forward.cross(right);
+        let pixels = [(0, 0), (4, 0), (0, 4), (4, 4)]
+            .into_iter()
+            .flat_map(|(qx, qy)| (0..16).map(move |i| (qx + i % 4, qy + i / 4)));
+        for (ray, (x, y)) in packet.rays.iter_mut().zip(pixels) {
+            let (x, y) = (f64::from(x) - 3.5, f64::from(y) - 3.5);
+            let d = forward + (right * x + up * y) * pixel;
+            *ray = Ray64::from_f64(eye, d).expect("a direction");
+        }
+        packet.aim_tile(eye.to_array())
+    }
+
+    /// Where a tile's corner rays say the level's box holds it between its
+    /// two planes across the axis, the two planes give every ray of the tile
+    /// the span the six give it; and they say so for tiles aimed well inside.
+    #[test]
+    fn a_tile_held_between_two_planes_spans_what_six_planes_give() {
+        let shapes = scattered(5, 3_000, 4.0, Vec3::splat(0.04));
+        let grid = VoxelHashGrid::new(&shapes);
+        let mut rng = Rng::new(21);
+        let mut held = 0;
+        for case in 0..400 {
+            let level = &grid.levels[case % grid.levels.len()];
+            let size = DVec3::from_array(level.far) - level.origin;
+            // Eyes in and around the box, aims within it, tiles narrow to wide.
+            let place = |rng: &mut Rng, wide: f64| {
+                level.origin
+                    + DVec3::from_array([0; 3].map(|_| rng.range(-wide, 1.0 + wide))) * size
+            };
+            let eye = place(&mut rng, [0.0, 0.5, 2.0][case % 3]);
+            let aim = place(&mut rng, -0.2);
+            let pixel = [1e-4, 1e-2, 0.1][case / 3 % 3];
+            Packet::with_spare(|packet| {
+                if !aim_tile(packet, eye, aim, pixel) || !level.holds_between_planes(packet) {
+                    return;
+                }
+                held += 1;
+                for ray in &packet.rays {
+                    let six = level.clip(ray, 0.0, f64::MAX);
+                    let two = level.clip_across(ray, packet.axis, 0.0, f64::MAX);
+                    let (Some(six), Some(two)) = (six, two) else {
+                        assert_eq!(six.is_some(), two.is_some(), "case {case}");
+                        continue;
+                    };
+                    let tolerance = 1e-9 * two.1.abs().max(1.0);
+                    assert!(
+                        (six.0 - two.0).abs() <= tolerance && (six.1 - two.1).abs() <= tolerance,
+                        "case {case}: six planes {six:?}, two {two:?}"
+                    );
+                }
+            });
+        }
+        assert!(held > 50, "only {held} tiles held");
+    }
+}

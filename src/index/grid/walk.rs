@@ -288,9 +288,9 @@ impl Level {
 
     /// The part of [t_lo, t_hi] the ray spends between the two planes of
     /// this level's box across `axis`, along which it moves (its reciprocal
-    /// there is finite): [`clip_to_box`] on that axis alone, so a part of
-    /// the ray's span in the box, and the whole of it where the ray leaves
-    /// the box through no other plane.
+    /// there is finite): [`clip_to_box`] on that axis alone. It holds the
+    /// ray's span in the box, and is that span where the ray enters and
+    /// leaves the box through those two planes.
     #[inline(always)]
     pub(super) fn clip_across(
         &self,
