@@ -234,31 +234,25 @@ impl Packet {
     /// The least and greatest slopes of the rays at [`TILE_CORNERS`], per
     /// cross axis: those of every ray of a tile ([`Packet::tile`]).
     fn corner_slopes(&self) -> SlopeRange {
-        let mut range = SlopeRange {
-            lo: [f64::INFINITY; 2],
-            hi: [f64::NEG_INFINITY; 2],
-            offset_lo: [0.0; 2],
-            offset_hi: [0.0; 2],
-        };
-        for i in TILE_CORNERS {
-            for j in 0..2 {
-                range.lo[j] = lesser(range.lo[j], self.slope[j][i]);
-                range.hi[j] = greater(range.hi[j], self.slope[j][i]);
-            }
-        }
-        range
+        self.range_of(TILE_CORNERS.into_iter())
     }
 
     /// The least and greatest slope and start offset of the rays in `live`,
     /// per cross axis.
     pub(super) fn slope_range(&self, live: u64) -> SlopeRange {
+        self.range_of(set_bits(live))
+    }
+
+    /// [`Packet::slope_range`] of the rays `rays`.
+    #[inline(always)]
+    fn range_of(&self, rays: impl Iterator<Item = usize>) -> SlopeRange {
         let mut range = SlopeRange {
             lo: [f64::INFINITY; 2],
             hi: [f64::NEG_INFINITY; 2],
             offset_lo: [f64::INFINITY; 2],
             offset_hi: [f64::NEG_INFINITY; 2],
         };
-        for i in set_bits(live) {
+        for i in rays {
             for j in 0..2 {
                 let m = self.slope[j][i];
                 range.lo[j] = lesser(range.lo[j], m);
