@@ -31,7 +31,7 @@
 
 use super::occupancy::{Heading, Occupancy, HEADINGS, MAX_GROUPS, SMALL_SCENE_GROUPS};
 use super::slab::{set_bits, Packet, PlaneCells, Rect};
-use super::walk::{first_axis, floor_to_int, greater, Ray64};
+use super::walk::{first_axis, floor_to_int, greater, step_of, Ray64};
 use super::Level;
 
 /// The gate walk's t rounds by a few units in the last place of the
@@ -57,12 +57,6 @@ const SLOTS: usize = 8;
 #[inline(always)]
 fn slot(i: usize) -> usize {
     i.min(SLOTS - 1)
-}
-
-/// −1, 0 or 1 as a direction's component goes down, nowhere or up an axis.
-#[inline(always)]
-fn step_of(d: f64) -> i64 {
-    i64::from(d > 0.0) - i64::from(d < 0.0)
 }
 
 /// Bytes a gate holds per cube: a proximity cloud's byte per heading, and

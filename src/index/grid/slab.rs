@@ -29,7 +29,7 @@
 
 use super::packet::RAYS;
 use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
-use super::walk::{greater, lesser, Ray64};
+use super::walk::{between_planes, greater, lesser, Ray64};
 use super::{EmptySpace, Level};
 use glam::DVec3;
 
@@ -623,13 +623,16 @@ impl Level {
     ) -> (u64, f64, f64) {
         let (k, step) = (packet.axis, packet.step as f64);
         let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step;
+        // Every ray goes the packet's way along its axis: the same two planes.
+        let planes = self.planes_across(k, packet.step);
         let mut live = 0u64;
         let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in set_bits(among) {
             let ray = &packet.rays[i];
             let (from, to) = (t_lo - slack[i], reach(i) + slack[i]);
             let clipped = if ACROSS {
-                self.clip_across(ray, k, from, to)
+                let (a, b) = between_planes(planes, ray, k, (from, to));
+                (a <= b).then_some((a, b))
             } else {
                 self.clip(ray, from, to)
             };
@@ -654,11 +657,7 @@ impl Level {
         let range = packet.corner_slopes();
         let (k, step) = (packet.axis, packet.step as f64);
         let o = packet.origin;
-        let (entry, exit) = if step > 0.0 {
-            (self.origin[k], self.far[k])
-        } else {
-            (self.far[k], self.origin[k])
-        };
+        let (entry, exit) = self.planes_across(k, packet.step);
         let ends = [greater(0.0, (entry - o[k]) * step), (exit - o[k]) * step];
         (0..2).all(|j| {
             let u = (k + 1 + j) % 3;
@@ -834,14 +833,13 @@ mod tests {
     use glam::Vec3;
 
     /// Aims `packet` at a tile of eye rays from `eye` toward `aim`, `pixel`
-    /// apart, in the renderer's order: quarter by quarter, each row by row.
+    /// apart, in the renderer's order ([`crate::render::tiles`]).
     fn aim_tile(packet: &mut Packet, eye: DVec3, aim: DVec3, pixel: f64) -> bool {
         let forward = (aim - eye).normalize();
         let right = forward.any_orthonormal_vector();
         let up = forward.cross(right);
-        let pixels = [(0, 0), (4, 0), (0, 4), (4, 4)]
-            .into_iter()
-            .flat_map(|(qx, qy)| (0..16).map(move |i| (qx + i % 4, qy + i / 4)));
+        let pixels = crate::render::tiles(8, 0..8).next().expect("one tile");
+        assert_eq!(pixels.len(), RAYS);
         for (ray, (x, y)) in packet.rays.iter_mut().zip(pixels) {
             let (x, y) = (f64::from(x) - 3.5, f64::from(y) - 3.5);
             let d = forward + (right * x + up * y) * pixel;
@@ -877,7 +875,9 @@ mod tests {
                 held += 1;
                 for ray in &packet.rays {
                     let six = level.clip(ray, 0.0, f64::MAX);
-                    let two = level.clip_across(ray, packet.axis, 0.0, f64::MAX);
+                    let planes = level.planes_across(packet.axis, packet.step);
+                    let two = between_planes(planes, ray, packet.axis, (0.0, f64::MAX));
+                    let two = (two.0 <= two.1).then_some(two);
                     let (Some(six), Some(two)) = (six, two) else {
                         assert_eq!(six.is_some(), two.is_some(), "case {case}");
                         continue;

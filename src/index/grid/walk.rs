@@ -108,7 +108,7 @@ impl Axes {
     #[inline(always)]
     fn new(ray: &Ray64, level: &Level) -> Self {
         let inv = [0, 1, 2].map(|a| if ray.d[a] == 0.0 { 0.0 } else { ray.inv[a] });
-        let step = ray.d.map(|d| (d > 0.0) as i64 - (d < 0.0) as i64);
+        let step = ray.d.map(step_of);
         Axes {
             step,
             up: ray.d.map(|d| (d > 0.0) as i64),
@@ -214,6 +214,12 @@ pub(super) fn floor_to_int(x: f64) -> i64 {
     truncated - i64::from((truncated as f64) > x)
 }
 
+/// −1, 0 or 1 as a direction's component goes down, nowhere or up an axis.
+#[inline(always)]
+pub(super) fn step_of(d: f64) -> i64 {
+    i64::from(d > 0.0) - i64::from(d < 0.0)
+}
+
 /// The lesser of `a` and `b`: `b` only where it compares below `a`, so a NaN
 /// `b` never wins. One comparison and a select: `f64::min` pays for its NaN
 /// rule on every call, which the walks' per-ray loops feel.
@@ -269,13 +275,28 @@ pub(super) fn clip_to_box(
     let (mut t0, mut t1) = (t_lo, t_hi);
     for a in 0..3 {
         let up = ray.inv[a] >= 0.0;
-        let (near, far) = if up { (lo[a], hi[a]) } else { (hi[a], lo[a]) };
-        t0 = greater(t0, (near - ray.o[a]) * ray.inv[a]);
-        t1 = lesser(t1, (far - ray.o[a]) * ray.inv[a]);
+        let planes = if up { (lo[a], hi[a]) } else { (hi[a], lo[a]) };
+        (t0, t1) = between_planes(planes, ray, a, (t0, t1));
     }
     // t0 = +∞: parallel to a plane outside the box, which t0 ≤ t1 misses
     // only where every other reciprocal overflowed too (t1 = +∞).
     (t0 <= t1 && t0 < f64::INFINITY).then_some((t0, t1))
+}
+
+/// The part of `span` (a range of t) the ray spends between two planes
+/// across `axis`, the one it crosses first (`near`) and the other (`far`),
+/// as a range of t that is empty where it ends before it starts.
+#[inline(always)]
+pub(super) fn between_planes(
+    (near, far): (f64, f64),
+    ray: &Ray64,
+    axis: usize,
+    (t_lo, t_hi): (f64, f64),
+) -> (f64, f64) {
+    (
+        greater(t_lo, (near - ray.o[axis]) * ray.inv[axis]),
+        lesser(t_hi, (far - ray.o[axis]) * ray.inv[axis]),
+    )
 }
 
 impl Level {
@@ -286,25 +307,15 @@ impl Level {
         clip_to_box(&self.origin.to_array(), &self.far, ray, t_lo, t_hi)
     }
 
-    /// The part of [t_lo, t_hi] the ray spends between the two planes of
-    /// this level's box across `axis`, along which it moves (its reciprocal
-    /// there is finite): [`clip_to_box`] on that axis alone. It holds the
-    /// ray's span in the box, and is that span where the ray enters and
-    /// leaves the box through those two planes.
+    /// The planes of this level's box across `axis` that a ray going along
+    /// it by `step` (±1) crosses first and last.
     #[inline(always)]
-    pub(super) fn clip_across(
-        &self,
-        ray: &Ray64,
-        axis: usize,
-        t_lo: f64,
-        t_hi: f64,
-    ) -> Option<(f64, f64)> {
-        let up = ray.inv[axis] >= 0.0;
-        let (lo, hi) = (self.origin[axis], self.far[axis]);
-        let (near, far) = if up { (lo, hi) } else { (hi, lo) };
-        let t0 = greater(t_lo, (near - ray.o[axis]) * ray.inv[axis]);
-        let t1 = lesser(t_hi, (far - ray.o[axis]) * ray.inv[axis]);
-        (t0 <= t1).then_some((t0, t1))
+    pub(super) fn planes_across(&self, axis: usize, step: i64) -> (f64, f64) {
+        if step > 0 {
+            (self.origin[axis], self.far[axis])
+        } else {
+            (self.far[axis], self.origin[axis])
+        }
     }
 
     /// The cell holding the ray's point at `t`, clamped to `[lo, hi]` per axis.
