@@ -9,7 +9,7 @@ pub mod grid;
 mod order;
 
 pub use brute::BruteForce;
-pub use grid::{EmptySpace, VoxelHashGrid, PACKET_RAYS};
+pub use grid::{EmptySpace, VoxelHashGrid, PACKET_GROUP_SIDE, PACKET_RAYS, PACKET_TILE_SIDE};
 pub use order::compact_order;
 
 use crate::geometry::{Ray, Real, V3};

@@ -415,11 +415,11 @@ fn region_of(scene: &Scene, options: &RenderOptions) -> Result<Region, RenderErr
 }
 
 /// Side of the square tiles of pixels whose eye rays are traced together:
-/// 8×8 pixels give [`crate::index::PACKET_RAYS`] rays per sample.
-pub const TILE: u32 = 8;
-/// Side of the quarters of a tile, listed one after another: each quarter's
-/// rays are one group of a packet, with a cone of its own.
-pub const QUARTER: u32 = TILE / 2;
+/// a tile gives [`crate::index::PACKET_RAYS`] rays per sample.
+pub const TILE: u32 = crate::index::PACKET_TILE_SIDE as u32;
+/// Side of the squares a tile is cut into, listed one after another: each
+/// square's rays are one group of a packet, with a cone of its own.
+pub const GROUP: u32 = crate::index::PACKET_GROUP_SIDE as u32;
 /// Rows per band, the unit of parallel work.
 pub const BAND_ROWS: u32 = 32;
 /// Columns per block of tiles, the pixels whose shadow rays are traced
@@ -430,11 +430,11 @@ pub const BLOCK_COLUMNS: u32 = BAND_ROWS;
 /// The tiles of the band of rows `rows` (at most [`BAND_ROWS`] of them) in
 /// the order they are traced, each as its pixels (column, row): tiles row by
 /// row within blocks of [`BLOCK_COLUMNS`] columns, blocks left to right, and
-/// a tile's pixels quarter by quarter ([`QUARTER`]×[`QUARTER`], top left,
-/// top right, bottom left, bottom right), row by row within a quarter.
+/// a tile's pixels group by group ([`GROUP`]×[`GROUP`] squares, row by
+/// row), row by row within a group.
 /// Consecutive packets then stay close on the image, so the cells and
 /// spheres one fetches are still in cache for the next, a tile row above or
-/// below included; and each run of [`QUARTER`]² pixels is a compact square.
+/// below included; and each run of [`GROUP`]² pixels is a compact square.
 pub fn tiles(width: u32, rows: std::ops::Range<u32>) -> impl Iterator<Item = Vec<(u32, u32)>> {
     tile_blocks(0..width, rows).flatten()
 }
@@ -461,13 +461,17 @@ pub fn tile_blocks(
 }
 
 /// The pixels of the tile whose top-left corner (lowest column and row) is
-/// (x0, y0), quarter by quarter, clipped to columns below `width` and rows below `end`.
+/// (x0, y0), group by group, clipped to columns below `width` and rows below `end`.
 fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
     let mut pixels = Vec::with_capacity((TILE * TILE) as usize);
-    for (qx, qy) in [(0, 0), (QUARTER, 0), (0, QUARTER), (QUARTER, QUARTER)] {
-        let (x, y) = (x0 + qx, y0 + qy);
-        for row in y..(y + QUARTER).min(end) {
-            pixels.extend((x..(x + QUARTER).min(width)).map(|column| (column, row)));
+    let corners = (0..TILE).step_by(GROUP as usize);
+    for (gx, gy) in corners
+        .clone()
+        .flat_map(|gy| corners.clone().map(move |gx| (gx, gy)))
+    {
+        let (x, y) = (x0 + gx, y0 + gy);
+        for row in y..(y + GROUP).min(end) {
+            pixels.extend((x..(x + GROUP).min(width)).map(|column| (column, row)));
         }
     }
     pixels
@@ -678,15 +682,16 @@ mod tests {
             let mut seen = vec![0u32; (width * rows.len() as u32) as usize];
             for tile in tiles(width, rows.clone()) {
                 assert!(!tile.is_empty() && tile.len() <= (TILE * TILE) as usize);
-                // A tile lies in a TILE × TILE square, its quarters in turn.
+                // A tile lies in a TILE × TILE square, its groups in turn.
                 let (x0, y0) = (tile[0].0 / TILE * TILE, tile[0].1);
-                let quarter = |(x, y): (u32, u32)| ((y - y0) / QUARTER) * 2 + (x - x0) / QUARTER;
+                let group =
+                    |(x, y): (u32, u32)| ((y - y0) / GROUP) * (TILE / GROUP) + (x - x0) / GROUP;
                 for &(x, y) in &tile {
                     assert!(x >= x0 && x < x0 + TILE && y >= y0 && y < y0 + TILE);
                     seen[((y - rows.start) * width + x) as usize] += 1;
                 }
-                // Quarter by quarter, row by row within a quarter.
-                let order = |&p: &(u32, u32)| (quarter(p), p.1, p.0);
+                // Group by group, row by row within a group.
+                let order = |&p: &(u32, u32)| (group(p), p.1, p.0);
                 assert!(tile.windows(2).all(|p| order(&p[0]) < order(&p[1])));
             }
             assert!(seen.iter().all(|&n| n == 1), "{width} {rows:?}");
@@ -871,13 +876,14 @@ mod tests {
     }
 
     #[test]
-    fn a_full_tile_is_four_square_quarters() {
+    fn a_full_tile_is_square_groups_row_by_row() {
         let tile = tiles(64, 0..32).next().unwrap();
-        assert_eq!(tile.len(), (TILE * TILE) as usize);
-        for (q, quarter) in tile.chunks((QUARTER * QUARTER) as usize).enumerate() {
-            let (qx, qy) = ((q as u32 % 2) * QUARTER, (q as u32 / 2) * QUARTER);
-            for (i, &(x, y)) in quarter.iter().enumerate() {
-                assert_eq!((x, y), (qx + i as u32 % QUARTER, qy + i as u32 / QUARTER));
+        assert_eq!(tile.len(), crate::index::PACKET_RAYS);
+        let per_row = TILE / GROUP;
+        for (g, group) in tile.chunks((GROUP * GROUP) as usize).enumerate() {
+            let (gx, gy) = ((g as u32 % per_row) * GROUP, (g as u32 / per_row) * GROUP);
+            for (i, &(x, y)) in group.iter().enumerate() {
+                assert_eq!((x, y), (gx + i as u32 % GROUP, gy + i as u32 / GROUP));
             }
         }
     }

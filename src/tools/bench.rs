@@ -42,7 +42,7 @@ pub struct BenchResult {
     pub build_s: f64,
     pub index_bytes_per_sphere: f64,
     pub levels: usize,
-    /// Eye rays in packets of [`PACKET_RAYS`] (8×8 pixel tiles), as the renderer traces them.
+    /// Eye rays in packets of [`PACKET_RAYS`] (16×16 pixel tiles), as the renderer traces them.
     pub primary_mrays_s: f64,
     /// Eye rays one at a time.
     pub primary_single_mrays_s: f64,

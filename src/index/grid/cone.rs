@@ -1,6 +1,7 @@
 //! Cones around a packet's rays, for skipping candidates none of them can hit.
 
-use super::packet::{GROUPS, LANES};
+use super::packet::{GROUPS, GROUP_SIDE, LANES, TILE_SIDE};
+use super::ray_set::set_bits;
 use super::slab::Packet;
 use super::walk::lesser;
 use glam::DVec3;
@@ -43,6 +44,9 @@ use glam::DVec3;
 #[derive(Clone, Copy)]
 struct Cone {
     axis: DVec3,
+    /// cos α and sin α (α widened by [`CONE_MARGIN`]).
+    cos: f64,
+    sin: f64,
     /// 1 / sin α: how far back the apex moves per unit of bound.
     inv_sin: f64,
     /// cos²α, lowered by [`CONE_MARGIN`] for the rounding of the test.
@@ -64,11 +68,42 @@ impl Cone {
             return None;
         }
         let axis = toward.try_normalize()?;
-        let cos = units.iter().map(|u| axis.dot(*u)).fold(1.0, lesser) - CONE_MARGIN;
-        (cos >= MIN_CONE_COS).then(|| Cone {
-            axis,
-            inv_sin: 1.0 / (1.0 - cos * cos).sqrt(),
-            cos2: cos * cos * (1.0 - CONE_MARGIN),
+        let cos = units.iter().map(|u| axis.dot(*u)).fold(1.0, lesser);
+        Cone::with_cos(axis, cos)
+    }
+
+    /// A cone around the cones `parts` whose axis is `toward` normalized:
+    /// a direction within α_p of a part's axis a_p lies within
+    /// ∠(a, a_p) + α_p of the axis a, whose cosine is
+    /// cos∠(a, a_p)·cos α_p − sin∠(a, a_p)·sin α_p. A part's α_p is at most
+    /// 60° (a wider one has no cone), so the sum stays below 240°, where a
+    /// cosine of at least cos 60° (the widest cone kept) means a sum of at
+    /// most 60°. None when a part has no cone, or as [`Cone::new`].
+    fn around(toward: DVec3, parts: impl Iterator<Item = Option<Cone>>) -> Option<Cone> {
+        let axis = toward.try_normalize()?;
+        let mut cos = 1.0f64;
+        for part in parts {
+            let part = part?;
+            let c = axis.dot(part.axis).clamp(-1.0, 1.0);
+            let s = (1.0 - c * c).sqrt();
+            cos = lesser(cos, c * part.cos - s * part.sin);
+        }
+        Cone::with_cos(axis, cos)
+    }
+
+    /// The cone about `axis` whose directions have at least the cosine
+    /// `cos` with it, widened by [`CONE_MARGIN`].
+    fn with_cos(axis: DVec3, cos: f64) -> Option<Cone> {
+        let cos = cos - CONE_MARGIN;
+        (cos >= MIN_CONE_COS).then(|| {
+            let sin = (1.0 - cos * cos).sqrt();
+            Cone {
+                axis,
+                cos,
+                sin,
+                inv_sin: 1.0 / sin,
+                cos2: cos * cos * (1.0 - CONE_MARGIN),
+            }
         })
     }
 
@@ -90,10 +125,31 @@ struct Offset {
     w2: f64,
 }
 
-/// The cones of a packet: one around all its rays, one around each group,
-/// all with their apex at the packet's origin.
+/// Groups a row of a tile.
+const GROUPS_A_ROW: usize = TILE_SIDE / GROUP_SIDE;
+const _: () = assert!(GROUPS_A_ROW.is_multiple_of(2));
+
+/// The groups of each quarter of a tile (top left, top right, bottom left,
+/// bottom right), one bit per group: the groups lie row by row.
+const QUARTER_GROUPS: [u32; 4] = {
+    let mut quarters = [0; 4];
+    let mut g = 0;
+    while g < GROUPS {
+        let (row, column) = (g / GROUPS_A_ROW, g % GROUPS_A_ROW);
+        let half = GROUPS_A_ROW / 2;
+        quarters[(row / half) * 2 + column / half] |= 1 << g;
+        g += 1;
+    }
+    quarters
+};
+
+/// The cones of a packet: one around all its rays, one around each quarter
+/// of its groups ([`QUARTER_GROUPS`]), one around each group, all with their
+/// apex at the packet's origin. A candidate is tested against a group's
+/// cone only where it may meet the quarter's.
 pub(super) struct Cones {
     packet: Option<Cone>,
+    quarters: [Option<Cone>; 4],
     groups: [Option<Cone>; GROUPS],
     apex: DVec3,
     /// How far from the apex a ray may start.
@@ -104,9 +160,17 @@ impl Cones {
     pub(super) fn new(packet: &Packet, t_min: f64) -> Cones {
         let group = |g: usize| &packet.unit[g * LANES..(g + 1) * LANES];
         let sums: [DVec3; GROUPS] = std::array::from_fn(|g| group(g).iter().sum());
+        let groups: [Option<Cone>; GROUPS] =
+            std::array::from_fn(|g| Cone::new(sums[g], group(g), t_min));
+        let quarter_sums = QUARTER_GROUPS.map(|q| set_bits(u64::from(q)).map(|g| sums[g]).sum());
+        let quarters: [Option<Cone>; 4] = std::array::from_fn(|q| {
+            let parts = set_bits(u64::from(QUARTER_GROUPS[q])).map(|g| groups[g]);
+            Cone::around(quarter_sums[q], parts)
+        });
         Cones {
-            packet: Cone::new(sums.iter().sum(), &packet.unit, t_min),
-            groups: std::array::from_fn(|g| Cone::new(sums[g], group(g), t_min)),
+            packet: Cone::around(quarter_sums.iter().sum(), quarters.iter().copied()),
+            quarters,
+            groups,
             apex: DVec3::from_array(packet.origin),
             spread: packet.spread(),
         }
@@ -126,9 +190,79 @@ impl Cones {
             return 0;
         }
         let mut hit = 0;
-        for (g, cone) in self.groups.iter().enumerate() {
-            hit |= u32::from(cone.is_none_or(|c| c.may_hit(&offset, bound))) << g;
+        for (cone, &quarter) in self.quarters.iter().zip(&QUARTER_GROUPS) {
+            let wanted = quarter & groups;
+            if wanted == 0 || cone.is_some_and(|c| !c.may_hit(&offset, bound)) {
+                continue;
+            }
+            for g in set_bits(u64::from(wanted)) {
+                let cone = &self.groups[g];
+                hit |= u32::from(cone.is_none_or(|c| c.may_hit(&offset, bound))) << g;
+            }
         }
-        hit & groups
+        hit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::index::grid::walk::Ray64;
+    use crate::rng::Rng;
+
+    fn unit_vector(rng: &mut Rng) -> DVec3 {
+        loop {
+            let v = DVec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+
+    /// Every ray of a packet lies within the cone of the packet, of its
+    /// quarter and of its group (those built from the groups' cones too),
+    /// for packets spread from a millionth of a radian to near the widest
+    /// cone kept, with directions of any length.
+    #[test]
+    fn every_ray_lies_within_its_packets_quarters_and_groups_cones() {
+        let mut rng = Rng::new(5);
+        let (mut quarters, mut packets) = (0, 0);
+        for _ in 0..400 {
+            let axis = unit_vector(&mut rng);
+            let spread = 10f64.powf(rng.range(-6.0, -0.2));
+            let scale = 10f64.powf(rng.range(-4.0, 4.0));
+            Packet::with_spare(|packet| {
+                for ray in packet.rays.iter_mut() {
+                    let d = axis + unit_vector(&mut rng) * spread * rng.unit();
+                    *ray = Ray64::from_f64(DVec3::ZERO, d * scale).expect("a direction");
+                }
+                if !packet.aim([0.0; 3]) {
+                    return;
+                }
+                let cones = Cones::new(packet, 0.0);
+                quarters += cones.quarters.iter().flatten().count();
+                packets += usize::from(cones.packet.is_some());
+                for (i, u) in packet.unit.iter().enumerate() {
+                    let g = i / LANES;
+                    let q = (QUARTER_GROUPS.iter().position(|m| m >> g & 1 != 0))
+                        .expect("every group in a quarter");
+                    for cone in [cones.packet, cones.quarters[q], cones.groups[g]] {
+                        let Some(cone) = cone else { continue };
+                        assert!(
+                            cone.axis.dot(*u) >= cone.cos,
+                            "spread {spread}: ray {i} outside a cone"
+                        );
+                    }
+                }
+            });
+        }
+        assert!(
+            quarters > 1_000 && packets > 250,
+            "{quarters} quarters, {packets} packets"
+        );
     }
 }

@@ -30,7 +30,8 @@
 //! have visited from the start, as far as any hit.
 
 use super::occupancy::{Heading, Occupancy, HEADINGS, MAX_GROUPS, SMALL_SCENE_GROUPS};
-use super::slab::{set_bits, Packet, PlaneCells, Rect};
+use super::ray_set::{set_bits, RaySet};
+use super::slab::{Packet, PlaneCells, Rect};
 use super::walk::{first_axis, floor_to_int, greater, step_of, Ray64};
 use super::Level;
 
@@ -374,7 +375,7 @@ impl Gate {
     pub fn packet_spans(&self, packet: &Packet, t_min: f64) -> PacketSpans {
         let everywhere = PacketSpans::EVERYWHERE;
         let (k, step) = (packet.axis(), packet.step());
-        let range = packet.slope_range(u64::MAX);
+        let range = packet.slope_range(RaySet::ALL);
         let magnitude = self.extent + packet.origin.iter().map(|x| x.abs()).sum::<f64>();
         let rounding = MARGIN * magnitude * (1.0 + range.steepest());
         let from_one_point_ahead = t_min >= 0.0 && packet.spread() == 0.0;

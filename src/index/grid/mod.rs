@@ -28,6 +28,7 @@ mod light_buffer;
 mod occupancy;
 mod octant;
 mod packet;
+mod ray_set;
 mod seek;
 mod shadow;
 mod slab;
@@ -40,7 +41,9 @@ use gate::Gate;
 use glam::DVec3;
 use light_buffer::{LightBuffer, NoBuffer};
 use octant::Octants;
-pub use packet::RAYS as PACKET_RAYS;
+pub use packet::{
+    GROUP_SIDE as PACKET_GROUP_SIDE, RAYS as PACKET_RAYS, TILE_SIDE as PACKET_TILE_SIDE,
+};
 use rayon::prelude::*;
 use seek::Nearest;
 use table::BlockTable;

@@ -1,16 +1,17 @@
 //! Eye-ray packets: rays from one origin walked through each level together.
 //!
-//! A packet is an 8×8 tile of pixels' rays. Each level is walked once for
+//! A packet is a 16×16 tile of pixels' rays. Each level is walked once for
 //! all of them ([`super::slab`]); every candidate of the cells the walk
-//! hands over is tested first against a cone around the packet's 64 rays,
-//! then against a cone around each group of 16 (a 4×4 quarter of the tile,
+//! hands over is tested first against a cone around the packet's 256 rays,
+//! then against a cone around each group of 16 (a 4×4 square of the tile,
 //! [`super::cone`]), and only the groups whose cone it may meet run the lane
 //! test ([`crate::geometry::lanes`]), which rounds exactly as the one-ray
 //! test does. The nearest (t, id) per ray wins whatever the order of the
 //! tests, so a packet returns what brute force returns.
 
 use super::cone::Cones;
-use super::slab::{set_bits, Limits, Packet, Searching};
+use super::ray_set::{set_bits, RaySet};
+use super::slab::{Limits, Packet, Searching};
 use super::walk::Ray64;
 use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
@@ -18,13 +19,18 @@ use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Answered, Hit};
 
 pub use crate::geometry::lanes::LANES;
+/// Pixels a side of a packet's square tile.
+pub const TILE_SIDE: usize = 16;
+/// Pixels a side of a group's square within the tile: its [`LANES`] rays.
+pub const GROUP_SIDE: usize = 4;
 /// Groups of [`LANES`] rays per packet.
-pub const GROUPS: usize = 4;
-/// Rays per packet: an 8×8 tile of pixels (its four 4×4 quarters are the
-/// groups). The walk's cost per packet grows far slower than its rays, so
-/// larger packets share it among more rays; each group keeps a cone of its
-/// own, so that a sphere is tested only against the groups that may hit it.
+pub const GROUPS: usize = (TILE_SIDE / GROUP_SIDE) * (TILE_SIDE / GROUP_SIDE);
+/// Rays per packet: a tile of [`TILE_SIDE`]² pixels, group by group. The
+/// walk's cost per packet grows far slower than its rays, so larger packets
+/// share it among more rays; each group keeps a cone of its own, so that a
+/// sphere is tested only against the groups that may hit it.
 pub const RAYS: usize = GROUPS * LANES;
+const _: () = assert!(GROUP_SIDE * GROUP_SIDE == LANES && RAYS.is_multiple_of(64));
 
 /// One group of a packet's rays, laid out for the lane test, and the best
 /// hit of each so far.
@@ -126,29 +132,19 @@ impl<R: Real> Searching for Groups<R> {
     }
 
     #[inline(always)]
-    fn take_improved(&mut self) -> u64 {
+    fn take_improved(&mut self) -> RaySet {
         if self.budget.spent() {
-            return u64::MAX;
+            return RaySet::ALL;
         }
         take_masks(self.groups.iter_mut().map(|lanes| &mut lanes.improved))
     }
 }
 
-/// The groups' lane masks (one per group, in order) as one mask of the
+/// The groups' lane masks (one per group, in order) as one set of the
 /// packet's rays, each left 0.
 #[inline(always)]
-pub(super) fn take_masks<'a>(masks: impl Iterator<Item = &'a mut u32>) -> u64 {
-    masks.enumerate().fold(0, |mask, (g, lanes)| {
-        mask | u64::from(std::mem::take(lanes)) << (g * LANES)
-    })
-}
-
-/// The groups with a ray among `live` (one bit per ray), one bit per group.
-#[inline(always)]
-pub(super) fn groups_of(live: u64) -> u32 {
-    (0..GROUPS).fold(0, |mask, g| {
-        mask | u32::from(live >> (g * LANES) & ((1 << LANES) - 1) != 0) << g
-    })
+pub(super) fn take_masks<'a>(masks: impl Iterator<Item = &'a mut u32>) -> RaySet {
+    RaySet::from_lanes(masks.map(std::mem::take))
 }
 
 /// The last spheres tested, direct-mapped: a packet meets each candidate in
@@ -285,7 +281,7 @@ impl<R: Real> VoxelHashGrid<R> {
             along,
             ..Limits::NONE
         };
-        let all = u64::MAX;
+        let all = RaySet::ALL;
         level.walk_packet(
             packet,
             groups,
@@ -293,7 +289,7 @@ impl<R: Real> VoxelHashGrid<R> {
             limits,
             self.empty_space,
             |ids, groups, live| {
-                let searching = groups_of(live);
+                let searching = live.groups();
                 for &i in ids {
                     if groups.budget.spent() {
                         return;

@@ -33,9 +33,10 @@
 //! grown by the largest offset.
 
 use super::cone::Cones;
-use super::packet::{groups_of, take_masks, PacketMailbox, GROUPS, LANES, RAYS};
+use super::packet::{take_masks, PacketMailbox, GROUPS, LANES, RAYS};
+use super::ray_set::{set_bits, RaySet};
 use super::seek::SeekBlocker;
-use super::slab::{set_bits, Limits, Packet, Searching};
+use super::slab::{Limits, Packet, Searching};
 use super::walk::Ray64;
 use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
@@ -113,9 +114,9 @@ impl<R: Real> Searching for ShadowGroups<R> {
     }
 
     #[inline(always)]
-    fn take_improved(&mut self) -> u64 {
+    fn take_improved(&mut self) -> RaySet {
         if self.budget.spent() {
-            return u64::MAX;
+            return RaySet::ALL;
         }
         take_masks(self.groups.iter_mut().map(|lanes| &mut lanes.newly))
     }
@@ -183,11 +184,9 @@ fn may_fan_out_little<R: Real>(origins: &[V3<R>], coarsest_cell: Option<f64>) ->
     (sides[1] + 1.0) * (sides[2] + 1.0) <= WIDEST_CELLS_PER_RAY * origins.len() as f64
 }
 
-/// The rays of `groups` still unblocked, one bit per ray.
-fn open_rays<R: Real>(rays: &ShadowGroups<R>) -> u64 {
-    rays.groups.iter().enumerate().fold(0, |mask, (g, lanes)| {
-        mask | u64::from(!lanes.blocked & ALL_LANES) << (g * LANES)
-    })
+/// The rays of `groups` still unblocked.
+fn open_rays<R: Real>(rays: &ShadowGroups<R>) -> RaySet {
+    RaySet::from_lanes(rays.groups.iter().map(|lanes| !lanes.blocked & ALL_LANES))
 }
 
 impl<R: Real> VoxelHashGrid<R> {
@@ -284,15 +283,16 @@ impl<R: Real> VoxelHashGrid<R> {
         }
         for level in &self.levels {
             let open = open_rays(rays);
-            if open == 0 || rays.budget.spent() {
+            if open.is_empty() || rays.budget.spent() {
                 return;
             }
             if self.walk_shadow_level(level, packet, &cones, rays, open) {
                 continue;
             }
             for g in 0..GROUPS {
-                let among = open & u64::from(ALL_LANES) << (g * LANES);
-                if among != 0 && !self.walk_shadow_level(level, packet, &cones, rays, among) {
+                let among = open & RaySet::group(g);
+                if !among.is_empty() && !self.walk_shadow_level(level, packet, &cones, rays, among)
+                {
                     let ShadowGroups {
                         groups,
                         budget,
@@ -312,9 +312,9 @@ impl<R: Real> VoxelHashGrid<R> {
         packet: &Packet,
         cones: &Cones,
         rays: &mut ShadowGroups<R>,
-        among: u64,
+        among: RaySet,
     ) -> bool {
-        let widest = WIDEST_CELLS_PER_RAY * f64::from(among.count_ones());
+        let widest = WIDEST_CELLS_PER_RAY * f64::from(among.len());
         // A fresh mailbox: a sphere seen by an earlier walk of other
         // groups was not tested against these.
         let mut mailbox = PacketMailbox::new();
@@ -328,7 +328,7 @@ impl<R: Real> VoxelHashGrid<R> {
             },
             self.empty_space,
             |ids, rays, live| {
-                let mut searching = groups_of(live);
+                let mut searching = live.groups();
                 for &i in ids {
                     if rays.budget.spent() {
                         return;

@@ -27,7 +27,8 @@
 //!   a true hit, which brute force finds too; the nearest (t, id) wins
 //!   whatever the order of the tests.
 
-use super::packet::RAYS;
+use super::packet::{GROUPS, GROUP_SIDE, LANES, RAYS, TILE_SIDE};
+use super::ray_set::{set_bits, RaySet};
 use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
 use super::walk::{between_planes, greater, lesser, Ray64};
 use super::{EmptySpace, Level};
@@ -41,7 +42,7 @@ pub(super) trait Searching {
     /// search; −∞ once it needs nothing more.
     fn reach(&self, i: usize) -> f64;
     /// The rays whose reach moved nearer since the last call, as a mask.
-    fn take_improved(&mut self) -> u64;
+    fn take_improved(&mut self) -> RaySet;
 }
 
 /// The packet's rays in f64 for the walk, and the axis it slabs along.
@@ -71,16 +72,28 @@ pub(super) struct Packet {
     lead: [f64; RAYS],
     /// The largest `|δ|` (widened).
     spread: f64,
+    /// Per group of [`LANES`] rays, the range of its rays' slopes and offsets.
+    group_ranges: [SlopeRange; GROUPS],
     /// Whether the rays are a tile of eye rays from the origin, as the
-    /// renderer hands them ([`crate::render::tiles`]: quarter by quarter,
-    /// each row by row), so that the rays at [`TILE_CORNERS`] have the least
+    /// renderer hands them ([`crate::render::tiles`]: group by group, each
+    /// row by row), so that the rays at [`TILE_CORNERS`] have the least
     /// and greatest slopes. A hint for the walk: it changes work, not answers.
     tile: bool,
 }
 
-/// The rays at a tile's four corners: the first of the first quarter, the
-/// fourth of the second, the thirteenth of the third, the last of the last.
-const TILE_CORNERS: [usize; 4] = [0, 19, 44, 63];
+/// The rays at a tile's four corners: the first of the first group, the
+/// last of the first row of the last group of the first row of groups, the
+/// first of the last row of the first group of the last row, the last of
+/// the last.
+const TILE_CORNERS: [usize; 4] = {
+    let row = TILE_SIDE / GROUP_SIDE;
+    [
+        0,
+        (row - 1) * LANES + GROUP_SIDE - 1,
+        row * (row - 1) * LANES + GROUP_SIDE * (GROUP_SIDE - 1),
+        RAYS - 1,
+    ]
+};
 
 /// Relative widening of the start offsets against their own rounding: a
 /// few f64 roundings of values themselves a few f32 units of the origin.
@@ -93,7 +106,7 @@ thread_local! {
 
 impl Packet {
     /// Calls `f` with a packet to aim, the thread's spare one if it has one:
-    /// a packet is some 10 KB, and filling a fresh one for every 64 rays
+    /// a packet is some 40 KB, and filling a fresh one for every packet
     /// cost more than a scene of few candidates spends on the rays.
     pub fn with_spare<T>(f: impl FnOnce(&mut Packet) -> T) -> T {
         let mut packet = SPARE.take().unwrap_or_else(|| Box::new(Packet::new()));
@@ -116,6 +129,7 @@ impl Packet {
             offset_hi: [[0.0; RAYS]; 2],
             lead: [0.0; RAYS],
             spread: 0.0,
+            group_ranges: [SlopeRange::EMPTY; GROUPS],
             tile: false,
         }
     }
@@ -175,6 +189,7 @@ impl Packet {
             }
         }
         self.measure_offsets();
+        self.group_ranges = std::array::from_fn(|g| self.range_of(g * LANES..(g + 1) * LANES));
         true
     }
 
@@ -237,21 +252,22 @@ impl Packet {
         self.range_of(TILE_CORNERS.into_iter())
     }
 
-    /// The least and greatest slope and start offset of the rays in `live`,
-    /// per cross axis.
-    pub(super) fn slope_range(&self, live: u64) -> SlopeRange {
-        self.range_of(set_bits(live))
+    /// The least and greatest slopes and start offsets, per cross axis, of
+    /// the groups with a ray in `live`: a range that holds those of the rays
+    /// in `live`, found from the groups' ranges ([`Packet::aim`]) at the
+    /// cost of a group rather than of a ray. It may be wider than the live
+    /// rays' own (a group's rays retire one by one), so the slabs'
+    /// rectangles may hold more cells, never fewer.
+    pub(super) fn slope_range(&self, live: RaySet) -> SlopeRange {
+        set_bits(u64::from(live.groups()))
+            .map(|g| self.group_ranges[g])
+            .fold(SlopeRange::EMPTY, |range, group| range.join(&group))
     }
 
     /// [`Packet::slope_range`] of the rays `rays`.
     #[inline(always)]
     fn range_of(&self, rays: impl Iterator<Item = usize>) -> SlopeRange {
-        let mut range = SlopeRange {
-            lo: [f64::INFINITY; 2],
-            hi: [f64::NEG_INFINITY; 2],
-            offset_lo: [f64::INFINITY; 2],
-            offset_hi: [f64::NEG_INFINITY; 2],
-        };
+        let mut range = SlopeRange::EMPTY;
         for i in rays {
             for j in 0..2 {
                 let m = self.slope[j][i];
@@ -276,6 +292,24 @@ pub(super) struct SlopeRange {
 }
 
 impl SlopeRange {
+    /// The range of no rays, which joins any range to that range.
+    const EMPTY: SlopeRange = SlopeRange {
+        lo: [f64::INFINITY; 2],
+        hi: [f64::NEG_INFINITY; 2],
+        offset_lo: [f64::INFINITY; 2],
+        offset_hi: [f64::NEG_INFINITY; 2],
+    };
+
+    /// The range of the rays of both.
+    fn join(&self, other: &SlopeRange) -> SlopeRange {
+        SlopeRange {
+            lo: [0, 1].map(|j| lesser(self.lo[j], other.lo[j])),
+            hi: [0, 1].map(|j| greater(self.hi[j], other.hi[j])),
+            offset_lo: [0, 1].map(|j| lesser(self.offset_lo[j], other.offset_lo[j])),
+            offset_hi: [0, 1].map(|j| greater(self.offset_hi[j], other.offset_hi[j])),
+        }
+    }
+
     /// The same slopes, the offsets widened by `by` each way.
     pub(super) fn widened(&self, by: f64) -> SlopeRange {
         SlopeRange {
@@ -300,7 +334,7 @@ pub(super) struct Rect {
 
 /// Most blocks a layer's rectangle may cover for them all to be fetched up
 /// front; a wider rectangle probes block by block.
-const LAYER_BLOCKS: usize = 16;
+const LAYER_BLOCKS: usize = 64;
 
 impl Rect {
     /// The cells between two planes, from the cells each plane meets.
@@ -346,7 +380,7 @@ const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
 /// `travel ≤ reach_i·|d_k|`; the limit is widened by [`RETIRE_MARGIN`], as
 /// retiring a ray late only costs work and retiring it early would lose hits.
 struct Search {
-    live: u64,
+    live: RaySet,
     limit: [f64; RAYS],
     nearest: f64,
 }
@@ -355,9 +389,9 @@ impl Search {
     /// Brings the limits of the live rays among `rays` (a mask) up to date
     /// with their best hits. A limit only shrinks (the best t only moves
     /// nearer), so the nearest limit is kept by taking the least.
-    fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: u64) {
+    fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: RaySet) {
         let k = packet.axis;
-        for i in set_bits(rays & self.live) {
+        for i in (rays & self.live).iter() {
             // A ray that starts ahead of the origin along the axis by δ
             // meets each plane δ sooner than the origin's travel says.
             let limit = reach(i) * packet.rays[i].d[k].abs() + packet.lead[i];
@@ -378,10 +412,11 @@ impl Search {
             return false;
         }
         self.nearest = f64::INFINITY;
-        for (i, &limit) in self.limit.iter().enumerate() {
+        for i in self.live.iter() {
+            let limit = self.limit[i];
             if travel > limit {
-                self.live &= !(1 << i);
-            } else if self.live >> i & 1 != 0 {
+                self.live.remove(i);
+            } else {
                 self.nearest = lesser(self.nearest, limit);
             }
         }
@@ -482,10 +517,10 @@ impl Level {
         &self,
         packet: &Packet,
         rays: &mut S,
-        among: u64,
+        among: RaySet,
         limits: Limits,
         empty_space: EmptySpace,
-        mut visit: impl FnMut(&[u32], &mut S, u64),
+        mut visit: impl FnMut(&[u32], &mut S, RaySet),
     ) -> bool {
         let (k, step) = (packet.axis, packet.step);
         let slack: [f64; RAYS] = packet.inv_length.map(|inv| self.slack * inv);
@@ -507,7 +542,7 @@ impl Level {
         };
         let first_along = greater(first_along, limits.along[0]);
         let last_along = lesser(last_along, limits.along[1]);
-        if live == 0 || first_along > last_along {
+        if live.is_empty() || first_along > last_along {
             return true;
         }
         let top = self.dims[k] - 1;
@@ -580,11 +615,11 @@ impl Level {
                     entry = leaving;
                     // The tests may have found nearer hits.
                     let improved = rays.take_improved();
-                    if improved != 0 {
+                    if !improved.is_empty() {
                         search.update(packet, |i| reach(i, rays), improved);
                     }
                     if search.retire(travel(s)) {
-                        if search.live == 0 {
+                        if search.live.is_empty() {
                             return true;
                         }
                         range = packet.slope_range(search.live);
@@ -595,7 +630,7 @@ impl Level {
             };
             s = empty_until + step;
             if search.retire(travel(s)) {
-                if search.live == 0 {
+                if search.live.is_empty() {
                     return true;
                 }
                 range = packet.slope_range(search.live);
@@ -616,18 +651,18 @@ impl Level {
         &self,
         packet: &Packet,
         reach: impl Fn(usize) -> f64,
-        among: u64,
+        among: RaySet,
         t_lo: f64,
         slack: &[f64; RAYS],
         exit: &mut [f64; RAYS],
-    ) -> (u64, f64, f64) {
+    ) -> (RaySet, f64, f64) {
         let (k, step) = (packet.axis, packet.step as f64);
         let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step;
         // Every ray goes the packet's way along its axis: the same two planes.
         let planes = self.planes_across(k, packet.step);
-        let mut live = 0u64;
+        let mut live = RaySet::NONE;
         let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
-        for i in set_bits(among) {
+        for i in among.iter() {
             let ray = &packet.rays[i];
             let (from, to) = (t_lo - slack[i], reach(i) + slack[i]);
             let clipped = if ACROSS {
@@ -640,7 +675,7 @@ impl Level {
                 continue;
             };
             exit[i] = b;
-            live |= 1 << i;
+            live.insert(i);
             first_along = lesser(first_along, along(ray, a));
             last_along = greater(last_along, along(ray, b));
         }
@@ -812,18 +847,6 @@ struct LayerBlocks {
     blocks: [Option<Block>; LAYER_BLOCKS],
 }
 
-/// The positions of the bits set in `mask`, lowest first.
-#[inline(always)]
-pub(super) fn set_bits(mut mask: u64) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let i = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            i
-        })
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -838,10 +861,14 @@ mod tests {
         let forward = (aim - eye).normalize();
         let right = forward.any_orthonormal_vector();
         let up = forward.cross(right);
-        let pixels = crate::render::tiles(8, 0..8).next().expect("one tile");
+        let side = TILE_SIDE as u32;
+        let pixels = crate::render::tiles(side, 0..side)
+            .next()
+            .expect("one tile");
         assert_eq!(pixels.len(), RAYS);
+        let middle = f64::from(side - 1) / 2.0;
         for (ray, (x, y)) in packet.rays.iter_mut().zip(pixels) {
-            let (x, y) = (f64::from(x) - 3.5, f64::from(y) - 3.5);
+            let (x, y) = (f64::from(x) - middle, f64::from(y) - middle);
             let d = forward + (right * x + up * y) * pixel;
             *ray = Ray64::from_f64(eye, d).expect("a direction");
         }
@@ -851,6 +878,53 @@ mod tests {
     /// Where a tile's corner rays say the level's box holds it between its
     /// two planes across the axis, the two planes give every ray of the tile
     /// the span the six give it; and they say so for tiles aimed well inside.
+    /// The slope range of any set of live rays, found from their groups'
+    /// ranges, holds each live ray's slopes and start offsets, for rays
+    /// from one point and rays that start near it (as shadow rays do).
+    #[test]
+    fn a_live_sets_slope_range_holds_each_live_ray() {
+        let mut rng = Rng::new(17);
+        let unit = |rng: &mut Rng| DVec3::from_array([0; 3].map(|_| rng.range(-1.0, 1.0)));
+        let mut checked = 0;
+        for case in 0..300 {
+            let axis = unit(&mut rng) + DVec3::new(2.0, 0.0, 0.0);
+            let spread = 10f64.powf(rng.range(-5.0, -0.5));
+            let near = [0.0, 1e-3][case % 2];
+            Packet::with_spare(|packet| {
+                for ray in packet.rays.iter_mut() {
+                    let o = unit(&mut rng) * near;
+                    let d = axis + unit(&mut rng) * spread;
+                    *ray = Ray64::from_f64(o, d).expect("a direction");
+                }
+                if !packet.aim([0.0; 3]) {
+                    return;
+                }
+                let mut live = RaySet::NONE;
+                for i in 0..RAYS {
+                    if rng.next_u64().is_multiple_of(5) {
+                        live |= single(i);
+                    }
+                }
+                let range = packet.slope_range(live);
+                for i in live.iter() {
+                    for j in 0..2 {
+                        let m = packet.slope[j][i];
+                        assert!(range.lo[j] <= m && m <= range.hi[j], "case {case}: ray {i}");
+                        assert!(range.offset_lo[j] <= packet.offset_lo[j][i]);
+                        assert!(packet.offset_hi[j][i] <= range.offset_hi[j]);
+                    }
+                    checked += 1;
+                }
+            });
+        }
+        assert!(checked > 10_000, "{checked} rays checked");
+    }
+
+    /// The set of ray `i` alone.
+    fn single(i: usize) -> RaySet {
+        RaySet::from_lanes((0..GROUPS).map(|g| if g == i / LANES { 1 << (i % LANES) } else { 0 }))
+    }
+
     #[test]
     fn a_tile_held_between_two_planes_spans_what_six_planes_give() {
         let shapes = scattered(5, 3_000, 4.0, Vec3::splat(0.04));
