@@ -464,14 +464,12 @@ pub fn tile_blocks(
 /// (x0, y0), group by group, clipped to columns below `width` and rows below `end`.
 fn tile_pixels(x0: u32, y0: u32, width: u32, end: u32) -> Vec<(u32, u32)> {
     let mut pixels = Vec::with_capacity((TILE * TILE) as usize);
-    let corners = (0..TILE).step_by(GROUP as usize);
-    for (gx, gy) in corners
-        .clone()
-        .flat_map(|gy| corners.clone().map(move |gx| (gx, gy)))
-    {
-        let (x, y) = (x0 + gx, y0 + gy);
-        for row in y..(y + GROUP).min(end) {
-            pixels.extend((x..(x + GROUP).min(width)).map(|column| (column, row)));
+    for gy in (0..TILE).step_by(GROUP as usize) {
+        for gx in (0..TILE).step_by(GROUP as usize) {
+            let (x, y) = (x0 + gx, y0 + gy);
+            for row in y..(y + GROUP).min(end) {
+                pixels.extend((x..(x + GROUP).min(width)).map(|column| (column, row)));
+            }
         }
     }
     pixels

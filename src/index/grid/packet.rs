@@ -3,8 +3,9 @@
 //! A packet is a 16×16 tile of pixels' rays. Each level is walked once for
 //! all of them ([`super::slab`]); every candidate of the cells the walk
 //! hands over is tested first against a cone around the packet's 256 rays,
-//! then against a cone around each group of 16 (a 4×4 square of the tile,
-//! [`super::cone`]), and only the groups whose cone it may meet run the lane
+//! then against a cone around each quarter of the tile (8×8), then against
+//! a cone around each group of 16 (a 4×4 square) in the quarters it may
+//! meet ([`super::cone`]), and only the groups whose cone it may meet run the lane
 //! test ([`crate::geometry::lanes`]), which rounds exactly as the one-ray
 //! test does. The nearest (t, id) per ray wins whatever the order of the
 //! tests, so a packet returns what brute force returns.

@@ -41,7 +41,7 @@ pub(super) trait Searching {
     /// How far ray `i` still searches, in t: its best hit or the end of its
     /// search; −∞ once it needs nothing more.
     fn reach(&self, i: usize) -> f64;
-    /// The rays whose reach moved nearer since the last call, as a mask.
+    /// The rays whose reach moved nearer since the last call.
     fn take_improved(&mut self) -> RaySet;
 }
 
@@ -386,7 +386,7 @@ struct Search {
 }
 
 impl Search {
-    /// Brings the limits of the live rays among `rays` (a mask) up to date
+    /// Brings the limits of the live rays among `rays` up to date
     /// with their best hits. A limit only shrinks (the best t only moves
     /// nearer), so the nearest limit is kept by taking the least.
     fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: RaySet) {
@@ -501,7 +501,7 @@ impl PlaneCells {
 }
 
 impl Level {
-    /// Walks the rays `among` (a mask) of the packet through this level,
+    /// Walks the rays `among` of the packet through this level,
     /// calling `visit` with the sphere ids of every occupied cell a
     /// still-searching ray may cross within the slabs that meet
     /// `limits.along`. False, walking nothing, when those rays fan out
