@@ -1,6 +1,6 @@
 //! Cones around a packet's rays, for skipping candidates none of them can hit.
 
-use super::packet::{GROUPS, GROUP_SIDE, LANES, TILE_SIDE};
+use super::packet::{GROUPS, LANES, QUARTER_GROUPS};
 use super::ray_set::set_bits;
 use super::slab::Packet;
 use super::walk::lesser;
@@ -124,24 +124,6 @@ struct Offset {
     /// |w|²
     w2: f64,
 }
-
-/// Groups a row of a tile.
-const GROUPS_A_ROW: usize = TILE_SIDE / GROUP_SIDE;
-const _: () = assert!(GROUPS_A_ROW.is_multiple_of(2));
-
-/// The groups of each quarter of a tile (top left, top right, bottom left,
-/// bottom right), one bit per group: the groups lie row by row.
-const QUARTER_GROUPS: [u32; 4] = {
-    let mut quarters = [0; 4];
-    let mut g = 0;
-    while g < GROUPS {
-        let (row, column) = (g / GROUPS_A_ROW, g % GROUPS_A_ROW);
-        let half = GROUPS_A_ROW / 2;
-        quarters[(row / half) * 2 + column / half] |= 1 << g;
-        g += 1;
-    }
-    quarters
-};
 
 /// The cones of a packet: one around all its rays, one around each quarter
 /// of its groups ([`QUARTER_GROUPS`]), one around each group, all with their

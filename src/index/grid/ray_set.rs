@@ -51,6 +51,11 @@ impl RaySet {
         set
     }
 
+    /// Every ray of the groups `groups` (one bit each).
+    pub(super) fn of_groups(groups: u32) -> RaySet {
+        set_bits(u64::from(groups)).fold(RaySet::NONE, |set, g| set | RaySet::group(g))
+    }
+
     /// The set of the groups' lane masks, one per group in order (lane l of
     /// group g is ray `g·LANES + l`).
     #[inline(always)]
