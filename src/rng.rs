@@ -46,6 +46,24 @@ impl Rng {
 }
 
 #[cfg(test)]
+impl Rng {
+    /// A direction uniform on the unit sphere (drawn in the cube, kept in
+    /// the ball away from its centre), for tests.
+    pub(crate) fn unit_vector(&mut self) -> glam::DVec3 {
+        loop {
+            let v = glam::DVec3::new(
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+            );
+            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 

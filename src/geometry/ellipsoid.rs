@@ -607,8 +607,8 @@ mod tests {
         let (mut fired, mut beyond_margin, mut hits) = (0u32, 0u32, 0u32);
         for _ in 0..200_000 {
             let (centre, scale) = random_ellipsoid(&mut rng);
-            let from = unit_vector(&mut rng) * 10f64.powf(rng.range(0.18, 3.9));
-            let pass = unit_vector(&mut rng) * rng.range(0.9, 1.6);
+            let from = rng.unit_vector() * 10f64.powf(rng.range(0.18, 3.9));
+            let pass = rng.unit_vector() * rng.range(0.9, 1.6);
             let origin = centre + from * scale;
             let dir = ((pass - from) * scale).normalize();
             let s = Ellipsoid::<R>::new(V3::<R>::from_dvec3(centre), V3::<R>::from_dvec3(scale));
@@ -645,7 +645,7 @@ mod tests {
         let (mut fired, mut near_lines) = (0u32, 0u32);
         for _ in 0..200_000 {
             let (centre, scale) = random_ellipsoid(&mut rng);
-            let out = unit_vector(&mut rng);
+            let out = rng.unit_vector();
             let from = out * (1.0 + 10f64.powf(rng.range(-7.0, 3.9)));
             // Half of them away from the centre in the unit frame (a positive
             // part along `out`), half in any direction, hits among them.
@@ -654,7 +654,7 @@ mod tests {
             } else {
                 0.0
             };
-            let local_dir = (out * lean + unit_vector(&mut rng)).normalize();
+            let local_dir = (out * lean + rng.unit_vector()).normalize();
             let origin = centre + from * scale;
             let dir = (local_dir * scale).normalize();
             let frame =
@@ -733,8 +733,8 @@ mod tests {
         for _ in 0..200_000 {
             let (centre, scale) = random_ellipsoid(&mut rng);
             let distance = 10f64.powf(rng.range(3.92, 15.0));
-            let from = unit_vector(&mut rng) * distance;
-            let pass = unit_vector(&mut rng)
+            let from = rng.unit_vector() * distance;
+            let pass = rng.unit_vector()
                 * if rng.range(0.0, 1.0) < 0.4 {
                     rng.range(0.0, 1.0)
                 } else {
@@ -786,26 +786,13 @@ mod tests {
     /// 100:1), up to 10³ sizes from the origin.
     fn random_ellipsoid(rng: &mut crate::rng::Rng) -> (DVec3, DVec3) {
         let size = 10f64.powf(rng.range(-6.0, 6.0));
-        let centre = unit_vector(rng) * size * 10f64.powf(rng.range(-3.0, 3.0));
+        let centre = rng.unit_vector() * size * 10f64.powf(rng.range(-3.0, 3.0));
         let scale = DVec3::new(
             size * 10f64.powf(rng.range(-1.0, 1.0)),
             size * 10f64.powf(rng.range(-1.0, 1.0)),
             size * 10f64.powf(rng.range(-1.0, 1.0)),
         );
         (centre, scale)
-    }
-
-    fn unit_vector(rng: &mut crate::rng::Rng) -> DVec3 {
-        loop {
-            let v = DVec3::new(
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-            );
-            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
-                return v.normalize();
-            }
-        }
     }
 
     #[test]

@@ -192,19 +192,6 @@ mod tests {
     use crate::index::grid::walk::Ray64;
     use crate::rng::Rng;
 
-    fn unit_vector(rng: &mut Rng) -> DVec3 {
-        loop {
-            let v = DVec3::new(
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-            );
-            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
-                return v.normalize();
-            }
-        }
-    }
-
     /// Every ray of a packet lies within the cone of the packet, of its
     /// quarter and of its group (those built from the groups' cones too),
     /// for packets spread from a millionth of a radian to near the widest
@@ -214,12 +201,12 @@ mod tests {
         let mut rng = Rng::new(5);
         let (mut quarters, mut packets) = (0, 0);
         for _ in 0..400 {
-            let axis = unit_vector(&mut rng);
+            let axis = rng.unit_vector();
             let spread = 10f64.powf(rng.range(-6.0, -0.2));
             let scale = 10f64.powf(rng.range(-4.0, 4.0));
             Packet::with_spare(|packet| {
                 for ray in packet.rays.iter_mut() {
-                    let d = axis + unit_vector(&mut rng) * spread * rng.unit();
+                    let d = axis + rng.unit_vector() * spread * rng.unit();
                     *ray = Ray64::from_f64(DVec3::ZERO, d * scale).expect("a direction");
                 }
                 if !packet.aim([0.0; 3]) {

@@ -177,6 +177,13 @@ mod tests {
         }
         let all = (0..GROUPS).fold(RaySet::NONE, |s, g| s | RaySet::group(g));
         assert_eq!(all, RaySet::ALL);
+        for _ in 0..100 {
+            let groups = rng.next_u64() as u32 & ((1 << GROUPS) - 1) as u32;
+            let set = RaySet::of_groups(groups);
+            for i in 0..RAYS {
+                assert_eq!(contains(set, i), groups >> (i / LANES) & 1 != 0);
+            }
+        }
     }
 
     #[test]
