@@ -168,11 +168,11 @@ pub(super) fn take_masks<'a>(masks: impl Iterator<Item = &'a mut u32>) -> RaySet
 
 /// The most cells a slab's rectangle may span for a packet to walk a level
 /// whole; wider, its quarters ([`QUARTER_GROUPS`]) walk it one after
-/// another. A candidate then meets the cones of one quarter, not of four,
-/// and a layer's blocks fit the up-front fetch: eye packets of clustered
-/// 10⁶ at 512² (a tile four times as wide in cells as at 1024²) took
-/// 1.022 G instructions walked whole, 0.801 G at 128 cells, 0.769 G at 64;
-/// clustered 10⁵ at 1024² 0.771 G whole and at 128 cells, 0.783 G at 64.
+/// another. Where a level's cells are small against the tile, one walk
+/// offers each candidate to the cones of four quarters and probes blocks
+/// past the up-front fetch, where a quarter's walk does neither. Chosen on
+/// clustered 10⁵ at 1024² and clustered 10⁶ at 512² (docs/index.md, "Wide
+/// tiles walk by quarters").
 const WIDEST_EYE_CELLS: f64 = 128.0;
 
 /// The last spheres tested, direct-mapped: a packet meets each candidate in
