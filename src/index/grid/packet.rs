@@ -24,8 +24,10 @@ pub use crate::geometry::lanes::LANES;
 pub const TILE_SIDE: usize = 16;
 /// Pixels a side of a group's square within the tile: its [`LANES`] rays.
 pub const GROUP_SIDE: usize = 4;
+/// Groups a row of a tile.
+pub(super) const GROUPS_A_ROW: usize = TILE_SIDE / GROUP_SIDE;
 /// Groups of [`LANES`] rays per packet.
-pub const GROUPS: usize = (TILE_SIDE / GROUP_SIDE) * (TILE_SIDE / GROUP_SIDE);
+pub const GROUPS: usize = GROUPS_A_ROW * GROUPS_A_ROW;
 /// Rays per packet: a tile of [`TILE_SIDE`]² pixels, group by group. The
 /// walk's cost per packet grows far slower than its rays, so larger packets
 /// share it among more rays; each group keeps a cone of its own, so that a
@@ -33,8 +35,6 @@ pub const GROUPS: usize = (TILE_SIDE / GROUP_SIDE) * (TILE_SIDE / GROUP_SIDE);
 pub const RAYS: usize = GROUPS * LANES;
 const _: () = assert!(GROUP_SIDE * GROUP_SIDE == LANES && RAYS.is_multiple_of(64));
 
-/// Groups a row of a tile.
-const GROUPS_A_ROW: usize = TILE_SIDE / GROUP_SIDE;
 const _: () = assert!(GROUPS_A_ROW.is_multiple_of(2));
 
 /// The groups of each quarter of a tile (top left, top right, bottom left,

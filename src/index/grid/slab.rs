@@ -27,7 +27,7 @@
 //!   a true hit, which brute force finds too; the nearest (t, id) wins
 //!   whatever the order of the tests.
 
-use super::packet::{GROUPS, GROUP_SIDE, LANES, RAYS, TILE_SIDE};
+use super::packet::{GROUPS, GROUPS_A_ROW, GROUP_SIDE, LANES, RAYS};
 use super::ray_set::{set_bits, RaySet};
 use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
 use super::walk::{between_planes, greater, lesser, Ray64};
@@ -86,7 +86,7 @@ pub(super) struct Packet {
 /// first of the last row of the first group of the last row, the last of
 /// the last.
 const TILE_CORNERS: [usize; 4] = {
-    let row = TILE_SIDE / GROUP_SIDE;
+    let row = GROUPS_A_ROW;
     [
         0,
         (row - 1) * LANES + GROUP_SIDE - 1,
@@ -850,6 +850,7 @@ struct LayerBlocks {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::index::grid::packet::TILE_SIDE;
     use crate::index::grid::tests::scattered;
     use crate::index::grid::VoxelHashGrid;
     use crate::rng::Rng;
