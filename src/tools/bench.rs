@@ -32,6 +32,16 @@ pub const BUILTIN_RESOLUTION: u32 = 1024;
 /// Their seed.
 pub const BUILTIN_SEED: u64 = 1;
 
+/// The most packets, single rays and shadow batches a task of the passes
+/// takes. Left to itself, rayon splits a pass called from within its pool
+/// into about two pieces a thread and splits a piece further only when
+/// another thread steals it: where the picture's cost lies in one part (a
+/// clump, a floor) one thread works through that piece alone while the
+/// others wait (docs/index.md, "The benchmark's passes in small tasks").
+const PACKETS_A_TASK: usize = 4;
+const RAYS_A_TASK: usize = 4 * PACKET_RAYS;
+const BATCHES_A_TASK: usize = 1;
+
 /// One scene's figures.
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchResult {
@@ -160,11 +170,13 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
     let grid = VoxelHashGrid::new(&shapes);
     let eye = eye_rays(&scene);
 
-    let mut hits = Vec::new();
+    // The passes write into answers made (and their pages touched) before
+    // the timer starts, as Embree's benchmark does.
+    let mut hits = vec![None; eye.len()];
     let dirs: Vec<V3<f32>> = eye.iter().map(|r| r.dir).collect();
-    let primary_s = timed(|| hits = primary_packets(&grid, &dirs));
-    let mut single = Vec::new();
-    let single_s = timed(|| single = primary_pass(&grid, &eye));
+    let primary_s = timed(|| primary_packets(&grid, &dirs, &mut hits));
+    let mut single = vec![None; eye.len()];
+    let single_s = timed(|| primary_pass(&grid, &eye, &mut single));
     let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
     let walk_s = timed(|| {
         std::hint::black_box(shadow_packets(&grid, &shadow));
@@ -186,7 +198,10 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
     let mrays = |rays: usize, seconds: f64| rays as f64 / seconds.max(1e-9) / 1e6;
     let probing = baselines.then(|| {
         let probing = VoxelHashGrid::new(&shapes).with_empty_space(EmptySpace::ProbeEveryCell);
-        mrays(eye.len(), timed(|| drop(primary_pass(&probing, &eye))))
+        mrays(
+            eye.len(),
+            timed(|| primary_pass(&probing, &eye, &mut single)),
+        )
     });
     let (brute_sample, brute) = if baselines {
         let (sample, seconds) = brute_rate(&shapes, &eye);
@@ -240,12 +255,12 @@ fn eye_rays(scene: &Scene) -> Vec<Ray<f32>> {
         .collect()
 }
 
-/// Eye rays in packets: each run of [`PACKET_RAYS`] directions from the eye traced together.
-fn primary_packets(index: &impl SphereIndex<f32>, dirs: &[V3<f32>]) -> Vec<Option<Hit<f32>>> {
-    let mut hits = vec![None; dirs.len()];
+/// Eye rays in packets: each run of [`PACKET_RAYS`] directions from the eye
+/// traced together, their answers into `hits`.
+fn primary_packets(index: &impl SphereIndex<f32>, dirs: &[V3<f32>], hits: &mut [Option<Hit<f32>>]) {
     dirs.par_chunks(PACKET_RAYS)
         .zip(hits.par_chunks_mut(PACKET_RAYS))
-        .with_min_len(16)
+        .with_max_len(PACKETS_A_TASK)
         .for_each(|(dirs, out)| {
             // As the renderer does with a packet the index gives up on.
             if index.closest_hits(V3::<f32>::ZERO, dirs, 1.0, f32::INFINITY, out)
@@ -256,14 +271,13 @@ fn primary_packets(index: &impl SphereIndex<f32>, dirs: &[V3<f32>]) -> Vec<Optio
                 }
             }
         });
-    hits
 }
 
-fn primary_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>]) -> Vec<Option<Hit<f32>>> {
-    rays.par_iter()
-        .with_min_len(256)
-        .map(|ray| index.closest_hit(ray, 1.0, f32::INFINITY))
-        .collect()
+/// Eye rays one at a time, their answers into `hits`.
+fn primary_pass(index: &impl SphereIndex<f32>, rays: &[Ray<f32>], hits: &mut [Option<Hit<f32>>]) {
+    (rays.par_iter().zip(hits))
+        .with_max_len(RAYS_A_TASK)
+        .for_each(|(ray, hit)| *hit = index.closest_hit(ray, 1.0, f32::INFINITY));
 }
 
 /// The shadow rays of one block's hits toward one light, as the renderer
@@ -319,6 +333,7 @@ fn shadow_rays(
 fn shadow_packets(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usize {
     batches
         .par_iter()
+        .with_max_len(BATCHES_A_TASK)
         .map(|batch| {
             let mut blocked = vec![false; batch.origins.len()];
             for (origins, out) in batch
@@ -341,6 +356,7 @@ fn shadow_packets(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usi
 fn shadow_pass(index: &impl SphereIndex<f32>, batches: &[ShadowBatch]) -> usize {
     batches
         .par_iter()
+        .with_max_len(BATCHES_A_TASK)
         .map(|batch| {
             batch
                 .origins
