@@ -175,6 +175,8 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
     let mut hits = vec![None; eye.len()];
     let dirs: Vec<V3<f32>> = eye.iter().map(|r| r.dir).collect();
     let primary_s = timed(|| primary_packets(&grid, &dirs, &mut hits));
+    // The single rays' answers, which the probing baseline's pass writes
+    // over: only their time is wanted.
     let mut single = vec![None; eye.len()];
     let single_s = timed(|| primary_pass(&grid, &eye, &mut single));
     let shadow = shadow_rays(&scene, &shapes, &eye, &hits);
