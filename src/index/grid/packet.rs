@@ -33,9 +33,11 @@ pub const GROUPS: usize = GROUPS_A_ROW * GROUPS_A_ROW;
 /// share it among more rays; each group keeps a cone of its own, so that a
 /// sphere is tested only against the groups that may hit it.
 pub const RAYS: usize = GROUPS * LANES;
-const _: () = assert!(GROUP_SIDE * GROUP_SIDE == LANES && RAYS.is_multiple_of(64));
-
-const _: () = assert!(GROUPS_A_ROW.is_multiple_of(2));
+// A group is one lane test's rays, a packet whole words of a `RaySet`, and
+// a tile's groups split into four quarters.
+const _: () = assert!(
+    GROUP_SIDE * GROUP_SIDE == LANES && RAYS.is_multiple_of(64) && GROUPS_A_ROW.is_multiple_of(2)
+);
 
 /// The groups of each quarter of a tile (top left, top right, bottom left,
 /// bottom right), one bit per group: the groups lie row by row.
