@@ -32,14 +32,20 @@ pub const BUILTIN_RESOLUTION: u32 = 1024;
 /// Their seed.
 pub const BUILTIN_SEED: u64 = 1;
 
-/// The most packets, single rays and shadow batches a task of the passes
-/// takes. Left to itself, rayon splits a pass called from within its pool
-/// into about two pieces a thread and splits a piece further only when
-/// another thread steals it: where the picture's cost lies in one part (a
-/// clump, a floor) one thread works through that piece alone while the
-/// others wait (docs/index.md, "The benchmark's passes in small tasks").
+// The passes' tasks are kept small. Left to itself, rayon splits a pass
+// called from within its pool into about two pieces a thread and splits a
+// piece further only when another thread steals it: where the picture's
+// cost lies in one part (a clump, a floor) one thread works through that
+// piece alone while the others wait (docs/index.md, "The benchmark's
+// passes in small tasks").
+
+/// The most eye packets a task of the packet pass takes.
 const PACKETS_A_TASK: usize = 4;
-const RAYS_A_TASK: usize = 4 * PACKET_RAYS;
+/// The most eye rays a task of the single-ray pass takes: as many as the
+/// packet pass's task holds.
+const RAYS_A_TASK: usize = PACKETS_A_TASK * PACKET_RAYS;
+/// The most shadow batches (a block's rays toward one light) a task of the
+/// shadow passes takes.
 const BATCHES_A_TASK: usize = 1;
 
 /// One scene's figures.
