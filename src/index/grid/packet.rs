@@ -337,8 +337,7 @@ impl<R: Real> VoxelHashGrid<R> {
                 among,
                 limits,
                 self.empty_space,
-                |ids, groups, live| {
-                    let searching = live.groups();
+                |ids, groups, searching| {
                     for &i in ids {
                         if groups.budget.spent() {
                             return;

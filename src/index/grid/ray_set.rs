@@ -70,10 +70,13 @@ impl RaySet {
     /// The groups with a ray in the set, one bit per group.
     #[inline(always)]
     pub(super) fn groups(self) -> u32 {
-        (0..GROUPS).fold(0, |mask, g| {
-            let lanes = self.0[g * LANES / 64] >> (g * LANES % 64) & LANE_BITS;
-            mask | u32::from(lanes != 0) << g
-        })
+        (0..GROUPS).fold(0, |mask, g| mask | u32::from(self.lanes(g) != 0) << g)
+    }
+
+    /// The rays of group `g` in the set, one bit per lane.
+    #[inline(always)]
+    pub(super) fn lanes(self, g: usize) -> u32 {
+        (self.0[g * LANES / 64] >> (g * LANES % 64) & LANE_BITS) as u32
     }
 }
 

@@ -327,8 +327,8 @@ impl<R: Real> VoxelHashGrid<R> {
                 ..Limits::NONE
             },
             self.empty_space,
-            |ids, rays, live| {
-                let mut searching = live.groups();
+            |ids, rays, live_groups| {
+                let mut searching = live_groups;
                 for &i in ids {
                     if rays.budget.spent() {
                         return;

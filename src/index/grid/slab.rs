@@ -372,8 +372,9 @@ impl Limits {
 const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
 
 /// How far along the slab axis each ray of a packet still searches this
-/// level, and the nearest of those among the live rays: a ray whose best
-/// t (plus the slack) lies before a slab's entry plane needs nothing beyond.
+/// level, and the nearest of those among the live rays, in all and per
+/// group: a ray whose best t (plus the slack) lies before a slab's entry
+/// plane needs nothing beyond.
 ///
 /// Ray i is at t = travel / |d_k| on the plane `travel` along the axis from
 /// the origin, so it searches the slab entered there while
@@ -381,14 +382,29 @@ const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
 /// retiring a ray late only costs work and retiring it early would lose hits.
 struct Search {
     live: RaySet,
+    /// The groups with a live ray, one bit each.
+    groups: u32,
     limit: [f64; RAYS],
+    /// The nearest limit of each group's live rays, and of all of them.
+    group_nearest: [f64; GROUPS],
     nearest: f64,
 }
 
 impl Search {
+    /// The search of the rays `live`, none of them limited yet.
+    fn new(live: RaySet) -> Self {
+        Search {
+            live,
+            groups: live.groups(),
+            limit: [f64::INFINITY; RAYS],
+            group_nearest: [f64::INFINITY; GROUPS],
+            nearest: f64::INFINITY,
+        }
+    }
+
     /// Brings the limits of the live rays among `rays` up to date
     /// with their best hits. A limit only shrinks (the best t only moves
-    /// nearer), so the nearest limit is kept by taking the least.
+    /// nearer), so the nearest limits are kept by taking the least.
     fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: RaySet) {
         let k = packet.axis;
         for i in (rays & self.live).iter() {
@@ -402,23 +418,38 @@ impl Search {
                 limit
             };
             self.limit[i] = limit;
+            let g = &mut self.group_nearest[i / LANES];
+            *g = lesser(*g, limit);
             self.nearest = lesser(self.nearest, limit);
         }
     }
 
-    /// Retires the rays done before `travel`; true when the live set changed.
+    /// Retires the rays done before `travel`, looking only into the groups
+    /// whose nearest limit lies before it; true when the live set changed.
     fn retire(&mut self, travel: f64) -> bool {
         if travel <= self.nearest {
             return false;
         }
         self.nearest = f64::INFINITY;
-        for i in self.live.iter() {
-            let limit = self.limit[i];
-            if travel > limit {
-                self.live.remove(i);
-            } else {
-                self.nearest = lesser(self.nearest, limit);
+        for g in set_bits(u64::from(self.groups)) {
+            if travel > self.group_nearest[g] {
+                let (mut nearest, mut lanes) = (f64::INFINITY, self.live.lanes(g));
+                for lane in set_bits(u64::from(lanes)) {
+                    let i = g * LANES + lane;
+                    let limit = self.limit[i];
+                    if travel > limit {
+                        self.live.remove(i);
+                        lanes &= !(1 << lane);
+                    } else {
+                        nearest = lesser(nearest, limit);
+                    }
+                }
+                self.group_nearest[g] = nearest;
+                if lanes == 0 {
+                    self.groups &= !(1 << g);
+                }
             }
+            self.nearest = lesser(self.nearest, self.group_nearest[g]);
         }
         true
     }
@@ -504,7 +535,8 @@ impl Level {
     /// Walks the rays `among` of the packet through this level,
     /// calling `visit` with the sphere ids of every occupied cell a
     /// still-searching ray may cross within the slabs that meet
-    /// `limits.along`. False, walking nothing, when those rays fan out
+    /// `limits.along`, and the groups (one bit each) with a ray still
+    /// searching. False, walking nothing, when those rays fan out
     /// across more than `limits.widest` cells of one slab: so wide a
     /// rectangle would visit more cells than the rays one at a time.
     ///
@@ -520,7 +552,7 @@ impl Level {
         among: RaySet,
         limits: Limits,
         empty_space: EmptySpace,
-        mut visit: impl FnMut(&[u32], &mut S, RaySet),
+        mut visit: impl FnMut(&[u32], &mut S, u32),
     ) -> bool {
         let (k, step) = (packet.axis, packet.step);
         let slack: [f64; RAYS] = packet.inv_length.map(|inv| self.slack * inv);
@@ -549,11 +581,7 @@ impl Level {
         let slab_of = |p: f64| self.slab_at(p * step as f64, k, 0, top) * step;
         let (first, last) = (slab_of(first_along), slab_of(last_along));
         let reach = |i: usize, rays: &S| lesser(rays.reach(i) + slack[i], exit[i]);
-        let mut search = Search {
-            live,
-            limit: [f64::INFINITY; RAYS],
-            nearest: f64::INFINITY,
-        };
+        let mut search = Search::new(live);
         // At the start a ray's reach is its exit (`clip` ends there, or sooner).
         search.update(packet, |i| exit[i], live);
         rays.take_improved();
@@ -609,7 +637,7 @@ impl Level {
                 while s * step <= layer_end * step {
                     let leaving = cells.at(&range, delta(entry_plane(s + step)));
                     self.visit_slab(k, s, Rect::between(&entry, &leaving), &blocks, &mut |ids| {
-                        visit(ids, rays, search.live)
+                        visit(ids, rays, search.groups)
                     });
                     s += step;
                     entry = leaving;
