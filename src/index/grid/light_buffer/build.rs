@@ -4,7 +4,8 @@
 
 use super::fill::{fill_lists, FillScratch, ListBounds, Placements, Split};
 use super::{
-    bytes_of, Entry, Face, Footprint, LightBuffer, NoBuffer, Steps, NEAR_DIVISOR, SUB, TILE, WIDEN,
+    bytes_of, f32_at_most, Entry, Face, Footprint, LightBuffer, NoBuffer, Steps, NEAR_DIVISOR, SUB,
+    TILE, WIDEN,
 };
 use crate::geometry::{Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
@@ -150,7 +151,7 @@ fn below_f32(x: f64) -> f32 {
 /// A distance as f32, at most `x` (the relative rounding of the f64 it was
 /// computed in included).
 fn distance_below(x: f64) -> f32 {
-    (x - x.abs() / (1u64 << 22) as f64) as f32
+    f32_at_most(x - x.abs() / (1u64 << 22) as f64)
 }
 
 /// One sphere as the light sees it: how near to the light its ball comes,

@@ -21,7 +21,7 @@
 //! [`Steps::floor_of`] of the first step left out, below the distance of
 //! every sphere left out: a ray it cannot answer goes to the walk.
 
-use super::Entry;
+use super::{f32_at_most, Entry};
 
 /// Fewest bits a distance keeps: below them, a light gets no buffer.
 const FEWEST_STEP_BITS: u32 = 4;
@@ -84,12 +84,11 @@ impl Steps {
     /// number below s is below s, and the last step takes only numbers
     /// from it on), so `x ≥ s / (p·(1 + u))`, u = 2^-53. The quotient
     /// `fl(s / p)` is at most `(s / p)·(1 + u)`, and the factor
-    /// `1 − 2^-21` takes more than that rounding, the product's and the
-    /// conversion's to f32 (relative 2^-24) off again. Clamped to f32's
-    /// largest, which is then below x too.
+    /// `1 − 2^-21` takes more than that rounding and the product's off
+    /// again; the conversion to f32 rounds down ([`f32_at_most`]).
     pub(super) fn floor_of(&self, step: u32) -> f32 {
         let shrink = 1.0 - 1.0 / (1u64 << 21) as f64;
-        ((f64::from(step) / self.per_unit * shrink) as f32).min(f32::MAX)
+        f32_at_most(f64::from(step) / self.per_unit * shrink)
     }
 
     /// The listed sphere's position in the grid's sphere array.
@@ -135,6 +134,19 @@ mod tests {
         assert_eq!(steps.step(1e300), (1 << 12) - 1);
         assert_eq!(steps.step(-3.0), 0);
         assert_eq!(steps.step(f64::NAN), 0);
+    }
+
+    /// Distances among f32's subnormals round to steps of 2^-149, far
+    /// more than any relative margin: the floor still lies below them.
+    #[test]
+    fn a_subnormal_step_s_floor_is_below_its_distances() {
+        let farthest = 2f64.powi(-126) * 1.37;
+        let steps = Steps::new(524_289, farthest).unwrap();
+        // A distance on the lower edge of its step.
+        let s = steps.step(0.021_858_235_028_679_25 * farthest);
+        let x = f64::from(s) / steps.per_unit;
+        let floor = steps.floor_of(steps.step(x));
+        assert!(f64::from(floor) <= x, "{floor} > {x}");
     }
 
     proptest! {
