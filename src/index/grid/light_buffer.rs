@@ -75,10 +75,11 @@ pub(super) enum NoBuffer {
     NoRoom,
 }
 
-/// The greatest f32 at most `x` (f32's largest for larger numbers; NaN for
-/// NaN). A plain conversion rounds to the nearest f32, up as often as down,
-/// and among f32's subnormals (below 2^-126) its error is 2^-149, not a
-/// fixed part of `x`: no relative margin taken off first covers that.
+/// The greatest f32 at most `x` (f32's largest for finite numbers beyond
+/// it; NaN for NaN). A plain conversion rounds to the nearest f32, up as
+/// often as down, and among f32's subnormals (below 2^-126) those lie
+/// 2^-149 apart whatever `x`: no margin in proportion to `x` taken off
+/// first covers that.
 fn f32_at_most(x: f64) -> f32 {
     let nearest = x as f32;
     if f64::from(nearest) > x {

@@ -327,8 +327,7 @@ impl<R: Real> VoxelHashGrid<R> {
                 ..Limits::NONE
             },
             self.empty_space,
-            |ids, rays, live_groups| {
-                let mut searching = live_groups;
+            |ids, rays, mut searching| {
                 for &i in ids {
                     if rays.budget.spent() {
                         return;
