@@ -382,10 +382,13 @@ const RETIRE_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
 /// retiring a ray late only costs work and retiring it early would lose hits.
 struct Search {
     live: RaySet,
-    /// The groups with a live ray, one bit each.
+    /// The groups with a live ray, one bit each: kept as `live` changes,
+    /// for every occupied cell's visit to be handed them.
     groups: u32,
     limit: [f64; RAYS],
-    /// The nearest limit of each group's live rays, and of all of them.
+    /// The nearest limit of each group's live rays, and of all of them:
+    /// kept as limits shrink, so that a retirement need look only into the
+    /// groups with a ray done.
     group_nearest: [f64; GROUPS],
     nearest: f64,
 }
