@@ -375,7 +375,7 @@ impl Gate {
     pub fn packet_spans(&self, packet: &Packet, t_min: f64) -> PacketSpans {
         let everywhere = PacketSpans::EVERYWHERE;
         let (k, step) = (packet.axis(), packet.step());
-        let range = packet.slope_range(RaySet::ALL);
+        let range = packet.slope_range(RaySet::ALL.groups());
         let magnitude = self.extent + packet.origin.iter().map(|x| x.abs()).sum::<f64>();
         let rounding = MARGIN * magnitude * (1.0 + range.steepest());
         let from_one_point_ahead = t_min >= 0.0 && packet.spread() == 0.0;

@@ -253,13 +253,13 @@ impl Packet {
     }
 
     /// The least and greatest slopes and start offsets, per cross axis, of
-    /// the groups with a ray in `live`: a range that holds those of the rays
-    /// in `live`, found from the groups' ranges ([`Packet::aim`]) at the
-    /// cost of a group rather than of a ray. It may be wider than the live
-    /// rays' own (a group's rays retire one by one), so the slabs'
+    /// the rays of `groups` (one bit per group): a range that holds those of
+    /// any of their rays, found from the groups' ranges ([`Packet::aim`]) at
+    /// the cost of a group rather than of a ray. It may be wider than the
+    /// live rays' own (a group's rays retire one by one), so the slabs'
     /// rectangles may hold more cells, never fewer.
-    pub(super) fn slope_range(&self, live: RaySet) -> SlopeRange {
-        set_bits(u64::from(live.groups()))
+    pub(super) fn slope_range(&self, groups: u32) -> SlopeRange {
+        set_bits(u64::from(groups))
             .map(|g| self.group_ranges[g])
             .fold(SlopeRange::EMPTY, |range, group| range.join(&group))
     }
@@ -597,7 +597,7 @@ impl Level {
         let entry_plane = |s: i64| if step > 0 { s } else { s + 1 };
         let delta = |plane: i64| self.origin[k] + plane as f64 * self.cell - packet.origin[k];
         let travel = |s: i64| delta(entry_plane(s)) * step as f64;
-        let mut range = packet.slope_range(search.live);
+        let mut range = packet.slope_range(search.groups);
         let cells = PlaneCells::new(self, packet);
         let (first, last) = (first * step, last * step);
         let ends = [delta(entry_plane(first)), delta(entry_plane(last + step))];
@@ -657,7 +657,7 @@ impl Level {
                         if search.live.is_empty() {
                             return true;
                         }
-                        range = packet.slope_range(search.live);
+                        range = packet.slope_range(search.groups);
                         entry = cells.at(&range, delta(entry_plane(s)));
                     }
                 }
@@ -668,7 +668,7 @@ impl Level {
                 if search.live.is_empty() {
                     return true;
                 }
-                range = packet.slope_range(search.live);
+                range = packet.slope_range(search.groups);
             }
         }
         true
@@ -941,7 +941,7 @@ mod tests {
                         live |= single(i);
                     }
                 }
-                let range = packet.slope_range(live);
+                let range = packet.slope_range(live.groups());
                 for i in live.iter() {
                     for j in 0..2 {
                         let m = packet.slope[j][i];
