@@ -4,10 +4,12 @@
 mod ellipsoid;
 pub mod lanes;
 mod real;
+mod round;
 mod spawn;
 
 pub use ellipsoid::{Ellipsoid, SurfacePoint, UnitSphereFrame};
 pub use real::{Real, Vec3Ops, V3};
+pub use round::{f32_at_least, f32_at_most};
 pub use spawn::spawn_origin;
 
 /// A half-line `origin + t·dir`. `dir` need not be unit length: eye rays keep

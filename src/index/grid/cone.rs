@@ -125,6 +125,38 @@ struct Offset {
     w2: f64,
 }
 
+/// The cone around all of a packet's rays alone, for a first test of
+/// every candidate: most of those a walk hands over lie beside the packet,
+/// and one cone test turns them away.
+pub(super) struct PacketCone {
+    cone: Option<Cone>,
+    apex: DVec3,
+    spread: f64,
+}
+
+impl PacketCone {
+    pub(super) fn new(packet: &Packet, t_min: f64) -> PacketCone {
+        PacketCone {
+            cone: Cone::new(packet.unit.iter().sum(), &packet.unit, t_min),
+            apex: DVec3::from_array(packet.origin),
+            spread: packet.spread(),
+        }
+    }
+
+    /// False only when no ray of the packet may hit a candidate within
+    /// `bound` of `center`.
+    #[inline(always)]
+    pub(super) fn may_hit(&self, center: DVec3, bound: f64) -> bool {
+        let w = center - self.apex;
+        let offset = Offset {
+            w,
+            w2: w.length_squared(),
+        };
+        self.cone
+            .is_none_or(|c| c.may_hit(&offset, bound + self.spread))
+    }
+}
+
 /// The cones of a packet: one around all its rays, one around each quarter
 /// of its groups ([`QUARTER_GROUPS`]), one around each group, all with their
 /// apex at the packet's origin. A candidate is tested against a group's

@@ -75,20 +75,6 @@ pub(super) enum NoBuffer {
     NoRoom,
 }
 
-/// The greatest f32 at most `x` (f32's largest for finite numbers beyond
-/// it; NaN for NaN). A plain conversion rounds to the nearest f32, up as
-/// often as down, and among f32's subnormals (below 2^-126) those lie
-/// 2^-149 apart whatever `x`: no margin in proportion to `x` taken off
-/// first covers that.
-fn f32_at_most(x: f64) -> f32 {
-    let nearest = x as f32;
-    if f64::from(nearest) > x {
-        nearest.next_down()
-    } else {
-        nearest
-    }
-}
-
 /// How far a sphere's texel rectangle is widened, in face coordinates: four
 /// times the direction error of a shadow ray's points (module docs).
 const WIDEN: f64 = 1.0 / (1u64 << 14) as f64;
@@ -292,24 +278,6 @@ impl<R: Real> LightBuffer<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    proptest::proptest! {
-        /// At any scale, subnormal and past f32's range included, the
-        /// f32 is at most x and the next one up is above it.
-        #[test]
-        fn f32_at_most_is_the_greatest_f32_at_most_x(
-            mantissa in 0.5f64..1.0,
-            exponent in -160i32..140,
-            negative: bool,
-        ) {
-            let x = mantissa * 2f64.powi(exponent) * if negative { -1.0 } else { 1.0 };
-            let f = f32_at_most(x);
-            proptest::prop_assert!(f64::from(f) <= x, "{} > {}", f, x);
-            if f < f32::MAX {
-                proptest::prop_assert!(f64::from(f.next_up()) > x, "{} ≤ {}", f.next_up(), x);
-            }
-        }
-    }
 
     #[test]
     fn faces_take_each_direction_once() {

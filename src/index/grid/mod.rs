@@ -32,6 +32,7 @@ mod ray_set;
 mod seek;
 mod shadow;
 mod slab;
+mod slopes;
 mod table;
 mod walk;
 

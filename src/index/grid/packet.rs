@@ -2,22 +2,23 @@
 //!
 //! A packet is a 16×16 tile of pixels' rays. Each level is walked once for
 //! all of them ([`super::slab`]); every candidate of the cells the walk
-//! hands over is tested first against a cone around the packet's 256 rays,
-//! then against a cone around each quarter of the tile (8×8), then against
-//! a cone around each group of 16 (a 4×4 square) in the quarters it may
-//! meet ([`super::cone`]), and only the groups whose cone it may meet run the lane
-//! test ([`crate::geometry::lanes`]), which rounds exactly as the one-ray
+//! hands over is tested first against a cone around the packet's 256 rays
+//! ([`super::cone`]), then against the box of slopes of each group of 16 (a
+//! 4×4 square, [`super::slopes`]), and only the groups whose box it may
+//! meet run the lane test ([`crate::geometry::lanes`]), which rounds exactly as the one-ray
 //! test does. The nearest (t, id) per ray wins whatever the order of the
 //! tests, so a packet returns what brute force returns.
 
-use super::cone::Cones;
+use super::cone::PacketCone;
 use super::ray_set::{set_bits, RaySet};
 use super::slab::{Limits, Packet, Searching};
+use super::slopes::GroupSlopes;
 use super::walk::Ray64;
 use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Answered, Hit};
+use glam::DVec3;
 
 pub use crate::geometry::lanes::LANES;
 /// Pixels a side of a packet's square tile.
@@ -30,7 +31,7 @@ pub(super) const GROUPS_A_ROW: usize = TILE_SIDE / GROUP_SIDE;
 pub const GROUPS: usize = GROUPS_A_ROW * GROUPS_A_ROW;
 /// Rays per packet: a tile of [`TILE_SIDE`]² pixels, group by group. The
 /// walk's cost per packet grows far slower than its rays, so larger packets
-/// share it among more rays; each group keeps a cone of its own, so that a
+/// share it among more rays; each group keeps a box of slopes of its own, so that a
 /// sphere is tested only against the groups that may hit it.
 pub const RAYS: usize = GROUPS * LANES;
 // A group is one lane test's rays, a packet whole words of a `RaySet`, and
@@ -171,11 +172,39 @@ pub(super) fn take_masks<'a>(masks: impl Iterator<Item = &'a mut u32>) -> RaySet
 /// The most cells a slab's rectangle may span for a packet to walk a level
 /// whole; wider, its quarters ([`QUARTER_GROUPS`]) walk it one after
 /// another. Where a level's cells are small against the tile, one walk
-/// offers each candidate to the cones of four quarters and probes blocks
+/// offers each candidate to all sixteen groups and probes blocks
 /// past the up-front fetch, where a quarter's walk does neither. Chosen on
 /// clustered 10⁵ at 1024² and clustered 10⁶ at 512² (docs/index.md, "Wide
 /// tiles walk by quarters").
 const WIDEST_EYE_CELLS: f64 = 128.0;
+
+/// How an eye packet turns a candidate away from its groups: by the cone
+/// around the whole packet first (most candidates a walk hands over lie
+/// beside the packet, and one test sends them off), then by each group's
+/// box of slopes ([`super::slopes`]).
+struct EyeCull {
+    cone: PacketCone,
+    slopes: GroupSlopes,
+}
+
+impl EyeCull {
+    fn new(packet: &Packet, t_min: f64) -> Self {
+        EyeCull {
+            cone: PacketCone::new(packet, t_min),
+            slopes: GroupSlopes::new(packet),
+        }
+    }
+
+    /// The groups among `groups` (one bit each) whose rays may hit a
+    /// candidate within `bound` of `center`.
+    #[inline(always)]
+    fn groups_hit(&self, center: DVec3, bound: f64, groups: u32) -> u32 {
+        if !self.cone.may_hit(center, bound) {
+            return 0;
+        }
+        self.slopes.groups_hit(center, bound, groups)
+    }
+}
 
 /// The last spheres tested, direct-mapped: a packet meets each candidate in
 /// several cells of a slab and of the slabs after it.
@@ -269,9 +298,9 @@ impl<R: Real> VoxelHashGrid<R> {
 
     fn trace_packet(&self, packet: &Packet, groups: &mut Groups<R>, t_min: R) {
         let mut mailbox = PacketMailbox::new();
-        let cones = Cones::new(packet, t_min.to_f64());
+        let cull = EyeCull::new(packet, t_min.to_f64());
         for &i in &self.short {
-            self.test_eye_groups(i, &cones, groups, (1 << GROUPS) - 1);
+            self.test_eye_groups(i, &cull, groups, (1 << GROUPS) - 1);
         }
         if groups.budget.spent() {
             return;
@@ -287,7 +316,7 @@ impl<R: Real> VoxelHashGrid<R> {
             let Some(along) = along else {
                 continue;
             };
-            self.walk_level(level, packet, groups, along, &mut mailbox, &cones);
+            self.walk_level(level, packet, groups, along, &mut mailbox, &cull);
             if groups.budget.spent() {
                 return;
             }
@@ -309,7 +338,7 @@ impl<R: Real> VoxelHashGrid<R> {
         groups: &mut Groups<R>,
         along: [f64; 2],
         mailbox: &mut PacketMailbox,
-        cones: &Cones,
+        cull: &EyeCull,
     ) {
         let whole = Limits {
             along,
@@ -343,7 +372,7 @@ impl<R: Real> VoxelHashGrid<R> {
                             return;
                         }
                         if mailbox.first_visit(i) {
-                            self.test_eye_groups(i, cones, groups, searching);
+                            self.test_eye_groups(i, cull, groups, searching);
                         }
                     }
                 },
@@ -354,13 +383,13 @@ impl<R: Real> VoxelHashGrid<R> {
         }
     }
 
-    /// Tests candidate `i` against the groups among `searching` whose cones
-    /// it may meet, spending a test per group.
+    /// Tests candidate `i` against the groups among `searching` whose rays
+    /// may meet it ([`EyeCull`]), spending a test per group.
     #[inline(always)]
-    fn test_eye_groups(&self, i: u32, cones: &Cones, rays: &mut Groups<R>, searching: u32) {
+    fn test_eye_groups(&self, i: u32, cull: &EyeCull, rays: &mut Groups<R>, searching: u32) {
         let sphere = &self.spheres[i as usize];
         let center = sphere.frame.center.to_dvec3();
-        let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        let hit = cull.groups_hit(center, sphere.bound.to_f64(), searching);
         rays.budget.spend(u64::from(hit.count_ones()));
         for g in set_bits(u64::from(hit)) {
             rays.groups[g].test(&sphere.frame, sphere.id);

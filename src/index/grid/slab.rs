@@ -264,6 +264,12 @@ impl Packet {
             .fold(SlopeRange::EMPTY, |range, group| range.join(&group))
     }
 
+    /// The least and greatest slope of group `g`'s rays on cross axis `j`.
+    pub(super) fn group_slopes(&self, g: usize, j: usize) -> (f64, f64) {
+        let range = &self.group_ranges[g];
+        (range.lo[j], range.hi[j])
+    }
+
     /// [`Packet::slope_range`] of the rays `rays`.
     #[inline(always)]
     fn range_of(&self, rays: impl Iterator<Item = usize>) -> SlopeRange {

@@ -4,10 +4,9 @@
 
 use super::fill::{fill_lists, FillScratch, ListBounds, Placements, Split};
 use super::{
-    bytes_of, f32_at_most, Entry, Face, Footprint, LightBuffer, NoBuffer, Steps, NEAR_DIVISOR, SUB,
-    TILE, WIDEN,
+    bytes_of, Entry, Face, Footprint, LightBuffer, NoBuffer, Steps, NEAR_DIVISOR, SUB, TILE, WIDEN,
 };
-use crate::geometry::{Real, Vec3Ops, V3};
+use crate::geometry::{f32_at_most, Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
 use glam::DVec3;
 use rayon::prelude::*;

@@ -21,7 +21,8 @@
 //! [`Steps::floor_of`] of the first step left out, below the distance of
 //! every sphere left out: a ray it cannot answer goes to the walk.
 
-use super::{f32_at_most, Entry};
+use super::Entry;
+use crate::geometry::f32_at_most;
 
 /// Fewest bits a distance keeps: below them, a light gets no buffer.
 const FEWEST_STEP_BITS: u32 = 4;
