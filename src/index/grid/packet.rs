@@ -178,18 +178,18 @@ pub(super) fn take_masks<'a>(masks: impl Iterator<Item = &'a mut u32>) -> RaySet
 /// tiles walk by quarters").
 const WIDEST_EYE_CELLS: f64 = 128.0;
 
-/// How an eye packet turns a candidate away from its groups: by the cone
+/// How a packet turns a candidate away from its groups: by the cone
 /// around the whole packet first (most candidates a walk hands over lie
 /// beside the packet, and one test sends them off), then by each group's
 /// box of slopes ([`super::slopes`]).
-struct EyeCull {
+pub(super) struct GroupCull {
     cone: PacketCone,
     slopes: GroupSlopes,
 }
 
-impl EyeCull {
-    fn new(packet: &Packet, t_min: f64) -> Self {
-        EyeCull {
+impl GroupCull {
+    pub(super) fn new(packet: &Packet, t_min: f64) -> Self {
+        GroupCull {
             cone: PacketCone::new(packet, t_min),
             slopes: GroupSlopes::new(packet),
         }
@@ -198,7 +198,7 @@ impl EyeCull {
     /// The groups among `groups` (one bit each) whose rays may hit a
     /// candidate within `bound` of `center`.
     #[inline(always)]
-    fn groups_hit(&self, center: DVec3, bound: f64, groups: u32) -> u32 {
+    pub(super) fn groups_hit(&self, center: DVec3, bound: f64, groups: u32) -> u32 {
         if !self.cone.may_hit(center, bound) {
             return 0;
         }
@@ -298,7 +298,7 @@ impl<R: Real> VoxelHashGrid<R> {
 
     fn trace_packet(&self, packet: &Packet, groups: &mut Groups<R>, t_min: R) {
         let mut mailbox = PacketMailbox::new();
-        let cull = EyeCull::new(packet, t_min.to_f64());
+        let cull = GroupCull::new(packet, t_min.to_f64());
         for &i in &self.short {
             self.test_eye_groups(i, &cull, groups, (1 << GROUPS) - 1);
         }
@@ -338,7 +338,7 @@ impl<R: Real> VoxelHashGrid<R> {
         groups: &mut Groups<R>,
         along: [f64; 2],
         mailbox: &mut PacketMailbox,
-        cull: &EyeCull,
+        cull: &GroupCull,
     ) {
         let whole = Limits {
             along,
@@ -384,9 +384,9 @@ impl<R: Real> VoxelHashGrid<R> {
     }
 
     /// Tests candidate `i` against the groups among `searching` whose rays
-    /// may meet it ([`EyeCull`]), spending a test per group.
+    /// may meet it ([`GroupCull`]), spending a test per group.
     #[inline(always)]
-    fn test_eye_groups(&self, i: u32, cull: &EyeCull, rays: &mut Groups<R>, searching: u32) {
+    fn test_eye_groups(&self, i: u32, cull: &GroupCull, rays: &mut Groups<R>, searching: u32) {
         let sphere = &self.spheres[i as usize];
         let center = sphere.frame.center.to_dvec3();
         let hit = cull.groups_hit(center, sphere.bound.to_f64(), searching);

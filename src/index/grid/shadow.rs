@@ -29,11 +29,10 @@
 //! cells the forward line crosses over the same stretch, (0, 1) plus the
 //! level's slack at both ends. The ends `e` lie within a few units of f32
 //! of the light, not on it: the slab walk widens its rectangles and its
-//! retire rule by each ray's offset, and the cones test with their bounds
-//! grown by the largest offset.
+//! retire rule by each ray's offset, and the packet's cone and its groups'
+//! boxes of slopes test with their bounds grown by the largest offset.
 
-use super::cone::Cones;
-use super::packet::{take_masks, PacketMailbox, GROUPS, LANES, RAYS};
+use super::packet::{take_masks, GroupCull, PacketMailbox, GROUPS, LANES, RAYS};
 use super::ray_set::{set_bits, RaySet};
 use super::seek::SeekBlocker;
 use super::slab::{Limits, Packet, Searching};
@@ -269,30 +268,29 @@ impl<R: Real> VoxelHashGrid<R> {
     /// or group by group where the packet fans out too wide, or ray by ray
     /// where a group does.
     fn trace_shadow_packet(&self, packet: &Packet, rays: &mut ShadowGroups<R>) {
-        let cones = Cones::new(packet, 0.0);
+        let cull = GroupCull::new(packet, 0.0);
         // Shadow rays toward one light from neighbouring points (the caller
         // lists them so) are often blocked by the same sphere, and any
         // blocker answers a shadow ray: the last one, tested first with the
         // walk's own test, closes such rays before any walk. (Keeping the
         // last 4 or 8 blockers cost more than it saved.)
         if let Some(i) = rays.last_blocker {
-            self.test_shadow_groups(i, &cones, rays, (1 << GROUPS) - 1);
+            self.test_shadow_groups(i, &cull, rays, (1 << GROUPS) - 1);
         }
         for &i in &self.short {
-            self.test_shadow_groups(i, &cones, rays, (1 << GROUPS) - 1);
+            self.test_shadow_groups(i, &cull, rays, (1 << GROUPS) - 1);
         }
         for level in &self.levels {
             let open = open_rays(rays);
             if open.is_empty() || rays.budget.spent() {
                 return;
             }
-            if self.walk_shadow_level(level, packet, &cones, rays, open) {
+            if self.walk_shadow_level(level, packet, &cull, rays, open) {
                 continue;
             }
             for g in 0..GROUPS {
                 let among = open & RaySet::group(g);
-                if !among.is_empty() && !self.walk_shadow_level(level, packet, &cones, rays, among)
-                {
+                if !among.is_empty() && !self.walk_shadow_level(level, packet, &cull, rays, among) {
                     let ShadowGroups {
                         groups,
                         budget,
@@ -310,7 +308,7 @@ impl<R: Real> VoxelHashGrid<R> {
         &self,
         level: &Level,
         packet: &Packet,
-        cones: &Cones,
+        cull: &GroupCull,
         rays: &mut ShadowGroups<R>,
         among: RaySet,
     ) -> bool {
@@ -333,8 +331,7 @@ impl<R: Real> VoxelHashGrid<R> {
                         return;
                     }
                     // Only a new blocker can close a group.
-                    if mailbox.first_visit(i) && self.test_shadow_groups(i, cones, rays, searching)
-                    {
+                    if mailbox.first_visit(i) && self.test_shadow_groups(i, cull, rays, searching) {
                         searching &= open_groups(rays);
                     }
                 }
@@ -342,19 +339,19 @@ impl<R: Real> VoxelHashGrid<R> {
         )
     }
 
-    /// Tests candidate `i` against the groups among `searching` whose cones
-    /// it may meet, spending a test per group; true if it blocks a ray.
+    /// Tests candidate `i` against the groups among `searching` whose rays
+    /// may meet it ([`GroupCull`]), spending a test per group; true if it blocks a ray.
     #[inline(always)]
     fn test_shadow_groups(
         &self,
         i: u32,
-        cones: &Cones,
+        cull: &GroupCull,
         rays: &mut ShadowGroups<R>,
         searching: u32,
     ) -> bool {
         let sphere = &self.spheres[i as usize];
         let center = sphere.frame.center.to_dvec3();
-        let hit = cones.groups_hit(center, sphere.bound.to_f64(), searching);
+        let hit = cull.groups_hit(center, sphere.bound.to_f64(), searching);
         rays.budget.spend(u64::from(hit.count_ones()));
         let mut blocks = false;
         for g in set_bits(u64::from(hit)) {

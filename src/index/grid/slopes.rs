@@ -1,5 +1,5 @@
 //! Each group's box of slopes, for skipping candidates none of its rays can
-//! hit: the culling of an eye packet's candidates.
+//! hit: the culling of a packet's candidates group by group.
 //!
 //! Rays from one point O that travel the same way along an axis k are lines
 //! `O + τ·(1, m_u, m_v)` in the frame (k, u, v), τ the distance along k and
