@@ -123,6 +123,9 @@ impl GroupSlopes {
             let margin = (mid.abs() + half) * SLOPE_MARGIN;
             let (lo, hi) = (mid - half - margin, mid + half + margin);
             kept &= self.overlapping(j, lo as f32, hi as f32);
+            if kept == 0 {
+                break;
+            }
         }
         kept
     }
