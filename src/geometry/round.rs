@@ -24,34 +24,23 @@ mod tests {
     use super::*;
 
     proptest::proptest! {
-        /// At any scale, subnormal and past f32's range included, the
-        /// f32 is at most x and the next one up is above it.
+        /// At any scale, subnormal and past f32's range included, each
+        /// rounding lands on x's side and the next f32 beyond it does not.
         #[test]
-        fn f32_at_most_is_the_greatest_f32_at_most_x(
+        fn each_rounding_is_the_nearest_f32_on_its_side_of_x(
             mantissa in 0.5f64..1.0,
             exponent in -160i32..140,
             negative: bool,
         ) {
             let x = mantissa * 2f64.powi(exponent) * if negative { -1.0 } else { 1.0 };
-            let f = f32_at_most(x);
-            proptest::prop_assert!(f64::from(f) <= x, "{} > {}", f, x);
-            if f < f32::MAX {
-                proptest::prop_assert!(f64::from(f.next_up()) > x, "{} ≤ {}", f.next_up(), x);
+            let (below, above) = (f32_at_most(x), f32_at_least(x));
+            proptest::prop_assert!(f64::from(below) <= x, "{} > {}", below, x);
+            proptest::prop_assert!(f64::from(above) >= x, "{} < {}", above, x);
+            if below < f32::MAX {
+                proptest::prop_assert!(f64::from(below.next_up()) > x, "{} ≤ {}", below.next_up(), x);
             }
-        }
-
-        /// The same, the other way.
-        #[test]
-        fn f32_at_least_is_the_least_f32_at_least_x(
-            mantissa in 0.5f64..1.0,
-            exponent in -160i32..140,
-            negative: bool,
-        ) {
-            let x = mantissa * 2f64.powi(exponent) * if negative { -1.0 } else { 1.0 };
-            let f = f32_at_least(x);
-            proptest::prop_assert!(f64::from(f) >= x, "{} < {}", f, x);
-            if f > f32::MIN {
-                proptest::prop_assert!(f64::from(f.next_down()) < x, "{} ≥ {}", f.next_down(), x);
+            if above > f32::MIN {
+                proptest::prop_assert!(f64::from(above.next_down()) < x, "{} ≥ {}", above.next_down(), x);
             }
         }
     }
