@@ -105,30 +105,25 @@ struct Offset {
 /// and one cone test turns them away.
 pub(super) struct PacketCone {
     cone: Option<Cone>,
-    apex: DVec3,
-    spread: f64,
 }
 
 impl PacketCone {
     pub(super) fn new(packet: &Packet, t_min: f64) -> PacketCone {
         PacketCone {
             cone: Cone::new(packet.unit.iter().sum(), &packet.unit, t_min),
-            apex: DVec3::from_array(packet.origin),
-            spread: packet.spread(),
         }
     }
 
-    /// False only when no ray of the packet may hit a candidate within
-    /// `bound` of `center`.
+    /// False only when no ray of the packet may come within `bound` of a
+    /// candidate at `w` from the packet's origin (its rays' spread
+    /// included in `bound`).
     #[inline(always)]
-    pub(super) fn may_hit(&self, center: DVec3, bound: f64) -> bool {
-        let w = center - self.apex;
+    pub(super) fn may_hit(&self, w: DVec3, bound: f64) -> bool {
         let offset = Offset {
             w,
             w2: w.length_squared(),
         };
-        self.cone
-            .is_none_or(|c| c.may_hit(&offset, bound + self.spread))
+        self.cone.is_none_or(|c| c.may_hit(&offset, bound))
     }
 }
 

@@ -181,8 +181,12 @@ const WIDEST_EYE_CELLS: f64 = 128.0;
 /// How a packet turns a candidate away from its groups: by the cone
 /// around the whole packet first (most candidates a walk hands over lie
 /// beside the packet, and one test sends them off), then by each group's
-/// box of slopes ([`super::slopes`]).
+/// box of slopes ([`super::slopes`]). Both see the candidate from the
+/// packet's origin, with its bound grown by how far from it a ray may
+/// start.
 pub(super) struct GroupCull {
+    origin: DVec3,
+    spread: f64,
     cone: PacketCone,
     slopes: GroupSlopes,
 }
@@ -190,6 +194,8 @@ pub(super) struct GroupCull {
 impl GroupCull {
     pub(super) fn new(packet: &Packet, t_min: f64) -> Self {
         GroupCull {
+            origin: DVec3::from_array(packet.origin),
+            spread: packet.spread(),
             cone: PacketCone::new(packet, t_min),
             slopes: GroupSlopes::new(packet),
         }
@@ -199,10 +205,11 @@ impl GroupCull {
     /// candidate within `bound` of `center`.
     #[inline(always)]
     pub(super) fn groups_hit(&self, center: DVec3, bound: f64, groups: u32) -> u32 {
-        if !self.cone.may_hit(center, bound) {
+        let (w, bound) = (center - self.origin, bound + self.spread);
+        if !self.cone.may_hit(w, bound) {
             return 0;
         }
-        self.slopes.groups_hit(center, bound, groups)
+        self.slopes.groups_hit(w, bound, groups)
     }
 }
 

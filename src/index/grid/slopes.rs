@@ -28,10 +28,11 @@
 //! out. Rays that start near O rather than on it (within the packet's
 //! spread, as shadow rays toward a light do) run within the spread of the
 //! lines through O with their slopes, so their candidates are tested with ρ
-//! plus the spread. Unlike a cone around a square group, whose corners leave room, the
-//! boxes fit the groups of a tile; and the test is one interval per axis
-//! per candidate, against the sixteen boxes side by side, where the cones
-//! took a test per cone.
+//! plus the spread.
+//!
+//! Unlike a cone around a square group, whose corners leave room, the boxes
+//! fit the groups of a tile; and the test is one interval per axis per
+//! candidate, against the sixteen boxes side by side.
 //!
 //! # Rounding
 //! - The rays' slopes are `d_u·(1/d_k)`, within 2.3·10⁻¹⁶·|m| of d_u/d_k:
@@ -68,9 +69,6 @@ const AHEAD: f64 = 1.0 + 1.0 / 1024.0;
 
 /// The boxes of slopes of a packet's groups, for rays from one point.
 pub(super) struct GroupSlopes {
-    origin: DVec3,
-    /// How far from the origin a ray may start.
-    spread: f64,
     /// The packet's axis and its two cross axes, in the order the slopes
     /// take them.
     axis: usize,
@@ -85,8 +83,6 @@ impl GroupSlopes {
     pub(super) fn new(packet: &Packet) -> Self {
         let axis = packet.axis();
         let mut slopes = GroupSlopes {
-            origin: DVec3::from_array(packet.origin),
-            spread: packet.spread(),
             axis,
             cross: [(axis + 1) % 3, (axis + 2) % 3],
             lo: [[0.0; GROUPS]; 2],
@@ -102,11 +98,11 @@ impl GroupSlopes {
     }
 
     /// The groups among `groups` (one bit each) whose rays' lines may come
-    /// within `bound` of `center`.
+    /// within `bound` of a candidate at `w` from the packet's origin (its
+    /// rays' spread included in `bound`).
     #[inline(always)]
-    pub(super) fn groups_hit(&self, center: DVec3, bound: f64, groups: u32) -> u32 {
-        let w = center - self.origin;
-        let rho = bound + self.spread + (w.x.abs() + w.y.abs() + w.z.abs()) * OFFSET_MARGIN;
+    pub(super) fn groups_hit(&self, w: DVec3, bound: f64, groups: u32) -> u32 {
+        let rho = bound + (w.x.abs() + w.y.abs() + w.z.abs()) * OFFSET_MARGIN;
         let (a, r2) = (w[self.axis], rho * rho);
         let a2 = a * a;
         // A NaN keeps every group: it is not ahead.
@@ -226,7 +222,7 @@ mod tests {
                     let grid = VoxelHashGrid::<f32>::new(&[shape]);
                     let candidate = &grid.spheres[0];
                     let kept = slopes.groups_hit(
-                        candidate.frame.center.as_dvec3(),
+                        candidate.frame.center.as_dvec3() - origin.as_dvec3(),
                         f64::from(candidate.bound),
                         ALL_GROUPS,
                     );
@@ -262,8 +258,6 @@ mod tests {
         };
         for _ in 0..2_000 {
             let mut slopes = GroupSlopes {
-                origin: DVec3::ZERO,
-                spread: 0.0,
                 axis: 0,
                 cross: [1, 2],
                 lo: [[0.0; GROUPS]; 2],
