@@ -29,6 +29,8 @@ pub const GROUP_SIDE: usize = 4;
 pub(super) const GROUPS_A_ROW: usize = TILE_SIDE / GROUP_SIDE;
 /// Groups of [`LANES`] rays per packet.
 pub const GROUPS: usize = GROUPS_A_ROW * GROUPS_A_ROW;
+/// Every group of a packet, one bit each.
+pub(super) const ALL_GROUPS: u32 = u32::MAX >> (32 - GROUPS);
 /// Rays per packet: a tile of [`TILE_SIDE`]² pixels, group by group. The
 /// walk's cost per packet grows far slower than its rays, so larger packets
 /// share it among more rays; each group keeps a box of slopes of its own, so that a
@@ -307,7 +309,7 @@ impl<R: Real> VoxelHashGrid<R> {
         let mut mailbox = PacketMailbox::new();
         let cull = GroupCull::new(packet, t_min.to_f64());
         for &i in &self.short {
-            self.test_eye_groups(i, &cull, groups, (1 << GROUPS) - 1);
+            self.test_eye_groups(i, &cull, groups, ALL_GROUPS);
         }
         if groups.budget.spent() {
             return;

@@ -121,6 +121,7 @@ pub(super) fn set_bits(mut mask: u64) -> impl Iterator<Item = usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::index::grid::packet::ALL_GROUPS;
     use crate::rng::Rng;
 
     /// A random set, with its members listed.
@@ -181,7 +182,7 @@ mod tests {
         let all = (0..GROUPS).fold(RaySet::NONE, |s, g| s | RaySet::group(g));
         assert_eq!(all, RaySet::ALL);
         for _ in 0..100 {
-            let groups = rng.next_u64() as u32 & ((1 << GROUPS) - 1) as u32;
+            let groups = rng.next_u64() as u32 & ALL_GROUPS;
             let set = RaySet::of_groups(groups);
             for i in 0..RAYS {
                 assert_eq!(contains(set, i), groups >> (i / LANES) & 1 != 0);

@@ -32,7 +32,7 @@
 //! retire rule by each ray's offset, and the packet's cone and its groups'
 //! boxes of slopes test with their bounds grown by the largest offset.
 
-use super::packet::{take_masks, GroupCull, PacketMailbox, GROUPS, LANES, RAYS};
+use super::packet::{take_masks, GroupCull, PacketMailbox, ALL_GROUPS, GROUPS, LANES, RAYS};
 use super::ray_set::{set_bits, RaySet};
 use super::seek::SeekBlocker;
 use super::slab::{Limits, Packet, Searching};
@@ -275,10 +275,10 @@ impl<R: Real> VoxelHashGrid<R> {
         // walk's own test, closes such rays before any walk. (Keeping the
         // last 4 or 8 blockers cost more than it saved.)
         if let Some(i) = rays.last_blocker {
-            self.test_shadow_groups(i, &cull, rays, (1 << GROUPS) - 1);
+            self.test_shadow_groups(i, &cull, rays, ALL_GROUPS);
         }
         for &i in &self.short {
-            self.test_shadow_groups(i, &cull, rays, (1 << GROUPS) - 1);
+            self.test_shadow_groups(i, &cull, rays, ALL_GROUPS);
         }
         for level in &self.levels {
             let open = open_rays(rays);

@@ -50,7 +50,7 @@
 //! - A NaN anywhere fails the comparisons that would rule a group out, so
 //!   it keeps every group.
 
-use super::packet::GROUPS;
+use super::packet::{ALL_GROUPS, GROUPS};
 use super::slab::Packet;
 use crate::geometry::{f32_at_least, f32_at_most};
 use glam::DVec3;
@@ -61,8 +61,6 @@ const SLOPE_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
 /// Relative widening of the bound against the rounding of C − O and of the
 /// rays' slopes (see the module docs).
 const OFFSET_MARGIN: f64 = 1.0 / (1u64 << 40) as f64;
-/// Every group, one bit each.
-const ALL_GROUPS: u32 = u32::MAX >> (32 - GROUPS);
 /// How far ahead of the plane through O, in squared bounds, a ball must lie
 /// for its interval to be computed.
 const AHEAD: f64 = 1.0 + 1.0 / 1024.0;
