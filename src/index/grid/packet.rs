@@ -155,6 +155,20 @@ impl<R: Real> Searching for Groups<R> {
         self.groups[i / LANES].search_end(i % LANES)
     }
 
+    /// Group by group, each lane's [`Lanes::search_end`] in one pass.
+    fn reaches(&self) -> [f64; RAYS] {
+        let mut reach = [f64::NEG_INFINITY; RAYS];
+        if self.budget.spent() {
+            return reach;
+        }
+        for (lanes, reach) in self.groups.iter().zip(reach.chunks_exact_mut(LANES)) {
+            for (lane, reach) in reach.iter_mut().enumerate() {
+                *reach = lanes.search_end(lane);
+            }
+        }
+        reach
+    }
+
     #[inline(always)]
     fn take_improved(&mut self) -> RaySet {
         if self.budget.spent() {
@@ -286,8 +300,10 @@ impl<R: Real> VoxelHashGrid<R> {
                     lanes.aim(&padded[g * LANES..(g + 1) * LANES], t_max);
                 }
                 self.trace_packet(packet, &mut rays, t_min);
-                for (i, hit) in out.iter_mut().enumerate() {
-                    *hit = rays.groups[i / LANES].hit(i % LANES);
+                for (lanes, out) in rays.groups.iter().zip(out.chunks_mut(LANES)) {
+                    for (lane, hit) in out.iter_mut().enumerate() {
+                        *hit = lanes.hit(lane);
+                    }
                 }
             } else {
                 for (dir, hit) in dirs.iter().zip(out.iter_mut()) {

@@ -10,7 +10,7 @@ use super::packet::{GROUPS, LANES, RAYS};
 use std::ops::{BitAnd, BitAndAssign, BitOr, BitOrAssign};
 
 /// Words of 64 rays in a set.
-const WORDS: usize = RAYS / 64;
+pub(super) const WORDS: usize = RAYS / 64;
 /// The bits of one group's lanes, at the bottom of a word.
 const LANE_BITS: u64 = (1 << LANES) - 1;
 
@@ -26,10 +26,6 @@ impl RaySet {
         self.0.iter().fold(0, |any, w| any | w) == 0
     }
 
-    pub(super) fn insert(&mut self, i: usize) {
-        self.0[i / 64] |= 1 << (i % 64);
-    }
-
     pub(super) fn remove(&mut self, i: usize) {
         self.0[i / 64] &= !(1 << (i % 64));
     }
@@ -38,8 +34,21 @@ impl RaySet {
         self.0.iter().map(|w| w.count_ones()).sum()
     }
 
-    /// The rays of the set, lowest first.
+    /// The rays `64·w .. 64·w + 64` of the set, one bit each.
     #[inline(always)]
+    pub(super) fn word(self, w: usize) -> u64 {
+        self.0[w]
+    }
+
+    /// The set whose word `w` is `words[w]` ([`RaySet::word`]).
+    #[inline(always)]
+    pub(super) fn from_words(words: [u64; WORDS]) -> RaySet {
+        RaySet(words)
+    }
+
+    /// The rays of the set, lowest first (the walks read whole words,
+    /// [`RaySet::word`]; the tests list members).
+    #[cfg(test)]
     pub(super) fn iter(self) -> impl Iterator<Item = usize> {
         (0..WORDS).flat_map(move |w| set_bits(self.0[w]).map(move |b| w * 64 + b))
     }
@@ -126,16 +135,16 @@ mod tests {
 
     /// A random set, with its members listed.
     fn random_set(rng: &mut Rng) -> (RaySet, Vec<usize>) {
-        let mut set = RaySet::NONE;
+        let mut words = [0; WORDS];
         let mut members = Vec::new();
         let share = rng.next_u64() % 4;
         for i in 0..RAYS {
             if rng.next_u64() % 4 < share {
-                set.insert(i);
+                words[i / 64] |= 1 << (i % 64);
                 members.push(i);
             }
         }
-        (set, members)
+        (RaySet::from_words(words), members)
     }
 
     /// Whether ray `i` is in `set`, from its words.
@@ -148,7 +157,8 @@ mod tests {
         let mut rng = Rng::new(7);
         for _ in 0..200 {
             let (set, members) = random_set(&mut rng);
-            assert_eq!(set.iter().collect::<Vec<_>>(), members);
+            let listed = (0..WORDS).flat_map(|w| set_bits(set.word(w)).map(move |b| w * 64 + b));
+            assert_eq!(listed.collect::<Vec<_>>(), members);
             assert_eq!(set.len() as usize, members.len());
             assert_eq!(set.is_empty(), members.is_empty());
             for i in 0..RAYS {

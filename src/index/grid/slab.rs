@@ -28,9 +28,9 @@
 //!   whatever the order of the tests.
 
 use super::packet::{GROUPS, GROUPS_A_ROW, GROUP_SIDE, LANES, RAYS};
-use super::ray_set::{set_bits, RaySet};
+use super::ray_set::{set_bits, RaySet, WORDS};
 use super::table::{block_key, box_mask, Block, BLOCK_SHIFT};
-use super::walk::{between_planes, greater, lesser, Ray64};
+use super::walk::{between_planes, greater, lesser, span_in_box, Ray64};
 use super::{EmptySpace, Level};
 use glam::DVec3;
 
@@ -41,6 +41,10 @@ pub(super) trait Searching {
     /// How far ray `i` still searches, in t: its best hit or the end of its
     /// search; −∞ once it needs nothing more.
     fn reach(&self, i: usize) -> f64;
+    /// Every ray's [`Searching::reach`], at once.
+    fn reaches(&self) -> [f64; RAYS] {
+        std::array::from_fn(|i| self.reach(i))
+    }
     /// The rays whose reach moved nearer since the last call.
     fn take_improved(&mut self) -> RaySet;
 }
@@ -139,26 +143,25 @@ impl Packet {
     /// go one at a time). Reused packet after packet, as it is large.
     pub fn aim(&mut self, origin: [f64; 3]) -> bool {
         self.tile = false;
-        // A reciprocal and products where a division each would do: the
-        // cones widen their angle far beyond the rounding this adds, and the
-        // cells' pad covers the walk's f64 rounding many times over.
+        // Each ray's unit direction, by a reciprocal and products where a
+        // division each would do (the cones widen their angle far beyond
+        // the rounding this adds, and the cells' pad covers the walk's f64
+        // rounding many times over); in the same pass, how steeply the
+        // shallowest ray travels along each axis (0 when some ray runs
+        // parallel to it or the other way), from whether all rays go up it,
+        // or all down, and their least slant: without a branch per ray (a
+        // NaN goes neither way).
+        let (mut all_up, mut all_down) = ([true; 3], [true; 3]);
+        let mut least = [f64::INFINITY; 3];
         for ((unit, inv_length), r) in
             (self.unit.iter_mut().zip(&mut self.inv_length)).zip(&self.rays)
         {
             *inv_length = 1.0 / r.length;
             *unit = DVec3::from_array(r.d) * *inv_length;
-        }
-        // How steeply the shallowest ray travels along each axis (0 when
-        // some ray runs parallel to it or the other way), from whether all
-        // rays go up it, or all down, and their least slant: without a
-        // branch per ray (a NaN goes neither way).
-        let (mut all_up, mut all_down) = ([true; 3], [true; 3]);
-        let mut least = [f64::INFINITY; 3];
-        for u in &self.unit {
             for axis in 0..3 {
-                all_up[axis] &= u[axis] > 0.0;
-                all_down[axis] &= u[axis] < 0.0;
-                least[axis] = lesser(least[axis], u[axis].abs());
+                all_up[axis] &= unit[axis] > 0.0;
+                all_down[axis] &= unit[axis] < 0.0;
+                least[axis] = lesser(least[axis], unit[axis].abs());
             }
         }
         let steepness: [f64; 3] = std::array::from_fn(|axis| {
@@ -416,20 +419,42 @@ impl Search {
     /// nearer), so the nearest limits are kept by taking the least.
     fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: RaySet) {
         let k = packet.axis;
-        for i in (rays & self.live).iter() {
+        let limit_of = |i: usize| {
             // A ray that starts ahead of the origin along the axis by δ
             // meets each plane δ sooner than the origin's travel says.
             let limit = reach(i) * packet.rays[i].d[k].abs() + packet.lead[i];
             // A done ray's limit is −∞, which no margin may turn into NaN.
-            let limit = if limit.is_finite() {
+            if limit.is_finite() {
                 limit + limit.abs() * RETIRE_MARGIN
             } else {
                 limit
-            };
-            self.limit[i] = limit;
-            let g = &mut self.group_nearest[i / LANES];
-            *g = lesser(*g, limit);
-            self.nearest = lesser(self.nearest, limit);
+            }
+        };
+        let rays = rays & self.live;
+        for w in 0..WORDS {
+            let word = rays.word(w);
+            if word != u64::MAX {
+                // A few rays (those a visit's tests moved nearer): one by one.
+                for i in set_bits(word).map(|bit| w * 64 + bit) {
+                    let limit = limit_of(i);
+                    self.limit[i] = limit;
+                    let g = &mut self.group_nearest[i / LANES];
+                    *g = lesser(*g, limit);
+                    self.nearest = lesser(self.nearest, limit);
+                }
+                continue;
+            }
+            // A whole word (the start of a walk): every ray, group by group.
+            for g in w * 64 / LANES..(w + 1) * 64 / LANES {
+                let mut nearest = self.group_nearest[g];
+                for i in g * LANES..(g + 1) * LANES {
+                    let limit = limit_of(i);
+                    self.limit[i] = limit;
+                    nearest = lesser(nearest, limit);
+                }
+                self.group_nearest[g] = nearest;
+                self.nearest = lesser(self.nearest, nearest);
+            }
         }
     }
 
@@ -581,9 +606,9 @@ impl Level {
         let mut exit = [f64::NEG_INFINITY; RAYS];
         let across_only = packet.tile && self.holds_between_planes(packet);
         let (live, first_along, last_along) = if across_only {
-            self.enter_box::<true>(packet, |i| rays.reach(i), among, t_lo, &slack, &mut exit)
+            self.enter_box::<true>(packet, &rays.reaches(), among, t_lo, &slack, &mut exit)
         } else {
-            self.enter_box::<false>(packet, |i| rays.reach(i), among, t_lo, &slack, &mut exit)
+            self.enter_box::<false>(packet, &rays.reaches(), among, t_lo, &slack, &mut exit)
         };
         let first_along = greater(first_along, limits.along[0]);
         let last_along = lesser(last_along, limits.along[1]);
@@ -691,7 +716,7 @@ impl Level {
     fn enter_box<const ACROSS: bool>(
         &self,
         packet: &Packet,
-        reach: impl Fn(usize) -> f64,
+        reach: &[f64; RAYS],
         among: RaySet,
         t_lo: f64,
         slack: &[f64; RAYS],
@@ -701,26 +726,39 @@ impl Level {
         let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step;
         // Every ray goes the packet's way along its axis: the same two planes.
         let planes = self.planes_across(k, packet.step);
-        let mut live = RaySet::NONE;
+        let mut live = [0; WORDS];
         let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
-        for i in among.iter() {
-            let ray = &packet.rays[i];
-            let (from, to) = (t_lo - slack[i], reach(i) + slack[i]);
-            let clipped = if ACROSS {
-                let (a, b) = between_planes(planes, ray, k, (from, to));
-                (a <= b).then_some((a, b))
-            } else {
-                self.clip(ray, from, to)
-            };
-            let Some((a, b)) = clipped else {
+        // Every ray of a word the set touches, each kept or not by a select
+        // rather than a branch: which rays a packet's clip keeps is as good
+        // as random, and the loop runs for all of them.
+        for (w, live) in live.iter_mut().enumerate() {
+            let among = among.word(w);
+            if among == 0 {
                 continue;
-            };
-            exit[i] = b;
-            live.insert(i);
-            first_along = lesser(first_along, along(ray, a));
-            last_along = greater(last_along, along(ray, b));
+            }
+            for bit in 0..64 {
+                let i = w * 64 + bit;
+                let ray = &packet.rays[i];
+                let (from, to) = (t_lo - slack[i], reach[i] + slack[i]);
+                let (a, b, meets) = if ACROSS {
+                    let (a, b) = between_planes(planes, ray, k, (from, to));
+                    (a, b, a <= b)
+                } else {
+                    span_in_box(&self.origin.to_array(), &self.far, ray, from, to)
+                };
+                let kept = meets && among >> bit & 1 != 0;
+                exit[i] = if kept { b } else { f64::NEG_INFINITY };
+                *live |= u64::from(kept) << bit;
+                let (a, b) = if kept {
+                    (along(ray, a), along(ray, b))
+                } else {
+                    (f64::INFINITY, f64::NEG_INFINITY)
+                };
+                first_along = lesser(first_along, a);
+                last_along = greater(last_along, b);
+            }
         }
-        (live, first_along, last_along)
+        (RaySet::from_words(live), first_along, last_along)
     }
 
     /// Whether the rays from the packet's origin with its corner rays'

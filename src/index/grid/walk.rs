@@ -272,6 +272,20 @@ pub(super) fn clip_to_box(
     t_lo: f64,
     t_hi: f64,
 ) -> Option<(f64, f64)> {
+    let (t0, t1, meets) = span_in_box(lo, hi, ray, t_lo, t_hi);
+    meets.then_some((t0, t1))
+}
+
+/// [`clip_to_box`] as the span's ends and whether it is the ray's part in
+/// the box, for loops over many rays that keep a branch out of each.
+#[inline(always)]
+pub(super) fn span_in_box(
+    lo: &[f64; 3],
+    hi: &[f64; 3],
+    ray: &Ray64,
+    t_lo: f64,
+    t_hi: f64,
+) -> (f64, f64, bool) {
     let (mut t0, mut t1) = (t_lo, t_hi);
     for a in 0..3 {
         let up = ray.inv[a] >= 0.0;
@@ -280,7 +294,7 @@ pub(super) fn clip_to_box(
     }
     // t0 = +∞: parallel to a plane outside the box, which t0 ≤ t1 misses
     // only where every other reciprocal overflowed too (t1 = +∞).
-    (t0 <= t1 && t0 < f64::INFINITY).then_some((t0, t1))
+    (t0, t1, t0 <= t1 && t0 < f64::INFINITY)
 }
 
 /// The part of `span` (a range of t) the ray spends between two planes
