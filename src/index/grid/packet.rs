@@ -103,6 +103,13 @@ impl<R: Real> Lanes<R> {
     fn test(&mut self, frame: &UnitSphereFrame<R>, id: u32) {
         let found =
             lanes::hits_from_one_origin(frame, self.origin, &self.dir, self.t_min, &self.cap);
+        // Most tests find no lane a nearer hit: one pass of compares without
+        // a branch a lane tells so (NaN, no hit, compares false).
+        let nearer =
+            (found.iter().zip(&self.best_t)).fold(false, |any, (&t, &best)| any | (t <= best));
+        if !nearer {
+            return;
+        }
         for (i, &t) in found.iter().enumerate() {
             // NaN (no hit) fails both comparisons.
             if t < self.best_t[i] || (t == self.best_t[i] && id < self.best_id[i]) {
