@@ -74,6 +74,8 @@ pub(super) struct Packet {
     /// Per ray, `|δ_axis|` (widened): how much farther along the axis it
     /// may search than a ray from the origin.
     lead: [f64; RAYS],
+    /// Per ray, `|d_axis|`: how far along the axis it moves per unit of t.
+    travel: [f64; RAYS],
     /// The largest `|δ|` (widened).
     spread: f64,
     /// Per group of [`LANES`] rays, the range of its rays' slopes and offsets.
@@ -132,6 +134,7 @@ impl Packet {
             offset_lo: [[0.0; RAYS]; 2],
             offset_hi: [[0.0; RAYS]; 2],
             lead: [0.0; RAYS],
+            travel: [0.0; RAYS],
             spread: 0.0,
             group_ranges: [SlopeRange::EMPTY; GROUPS],
             tile: false,
@@ -153,16 +156,16 @@ impl Packet {
         // NaN goes neither way).
         let (mut all_up, mut all_down) = ([true; 3], [true; 3]);
         let mut least = [f64::INFINITY; 3];
-        for ((unit, inv_length), r) in
-            (self.unit.iter_mut().zip(&mut self.inv_length)).zip(&self.rays)
-        {
-            *inv_length = 1.0 / r.length;
-            *unit = DVec3::from_array(r.d) * *inv_length;
+        for i in 0..RAYS {
+            let r = &self.rays[i];
+            let inv_length = 1.0 / r.length;
+            let unit = DVec3::from_array(r.d) * inv_length;
             for axis in 0..3 {
                 all_up[axis] &= unit[axis] > 0.0;
                 all_down[axis] &= unit[axis] < 0.0;
                 least[axis] = lesser(least[axis], unit[axis].abs());
             }
+            (self.inv_length[i], self.unit[i]) = (inv_length, unit);
         }
         let steepness: [f64; 3] = std::array::from_fn(|axis| {
             let same_way = all_up[axis] || all_down[axis];
@@ -185,11 +188,12 @@ impl Packet {
         self.origin = origin;
         self.axis = axis;
         self.step = if all_up[axis] { 1 } else { -1 };
-        for j in 0..2 {
-            let u = (axis + 1 + j) % 3;
-            for (m, r) in self.slope[j].iter_mut().zip(&self.rays) {
-                *m = r.d[u] * r.inv[axis];
-            }
+        let [u, v] = self.cross();
+        for i in 0..RAYS {
+            let r = &self.rays[i];
+            self.slope[0][i] = r.d[u] * r.inv[axis];
+            self.slope[1][i] = r.d[v] * r.inv[axis];
+            self.travel[i] = r.d[axis].abs();
         }
         self.measure_offsets();
         self.group_ranges = std::array::from_fn(|g| self.range_of(g * LANES..(g + 1) * LANES));
@@ -418,11 +422,10 @@ impl Search {
     /// with their best hits. A limit only shrinks (the best t only moves
     /// nearer), so the nearest limits are kept by taking the least.
     fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: RaySet) {
-        let k = packet.axis;
         let limit_of = |i: usize| {
             // A ray that starts ahead of the origin along the axis by δ
             // meets each plane δ sooner than the origin's travel says.
-            let limit = reach(i) * packet.rays[i].d[k].abs() + packet.lead[i];
+            let limit = reach(i) * packet.travel[i] + packet.lead[i];
             // A done ray's limit is −∞, which no margin may turn into NaN.
             if limit.is_finite() {
                 limit + limit.abs() * RETIRE_MARGIN
