@@ -726,34 +726,48 @@ impl Level {
         exit: &mut [f64; RAYS],
     ) -> (RaySet, f64, f64) {
         let (k, step) = (packet.axis, packet.step as f64);
-        let along = |ray: &Ray64, t: f64| (ray.o[k] + t * ray.d[k]) * step;
+        let along = |i: usize, t: f64| (packet.rays[i].o[k] + t * packet.rays[i].d[k]) * step;
         // Every ray goes the packet's way along its axis: the same two planes.
         let planes = self.planes_across(k, packet.step);
+        let clip = |i: usize| {
+            let ray = &packet.rays[i];
+            let (from, to) = (t_lo - slack[i], reach[i] + slack[i]);
+            if ACROSS {
+                let (a, b) = between_planes(planes, ray, k, (from, to));
+                (a, b, a <= b)
+            } else {
+                span_in_box(&self.origin.to_array(), &self.far, ray, from, to)
+            }
+        };
         let mut live = [0; WORDS];
         let (mut first_along, mut last_along) = (f64::INFINITY, f64::NEG_INFINITY);
-        // Every ray of a word the set touches, each kept or not by a select
-        // rather than a branch: which rays a packet's clip keeps is as good
-        // as random, and the loop runs for all of them.
         for (w, live) in live.iter_mut().enumerate() {
             let among = among.word(w);
-            if among == 0 {
+            if among != u64::MAX {
+                // A few rays (a quarter's, or a shadow packet's still
+                // unblocked): those alone.
+                for bit in set_bits(among) {
+                    let i = w * 64 + bit;
+                    let (a, b, meets) = clip(i);
+                    if meets {
+                        exit[i] = b;
+                        *live |= 1 << bit;
+                        first_along = lesser(first_along, along(i, a));
+                        last_along = greater(last_along, along(i, b));
+                    }
+                }
                 continue;
             }
+            // A whole word (a walk of the whole packet): each ray kept or
+            // not by a select rather than a branch, as which rays a
+            // packet's clip keeps is as good as random.
             for bit in 0..64 {
                 let i = w * 64 + bit;
-                let ray = &packet.rays[i];
-                let (from, to) = (t_lo - slack[i], reach[i] + slack[i]);
-                let (a, b, meets) = if ACROSS {
-                    let (a, b) = between_planes(planes, ray, k, (from, to));
-                    (a, b, a <= b)
-                } else {
-                    span_in_box(&self.origin.to_array(), &self.far, ray, from, to)
-                };
-                let kept = meets && among >> bit & 1 != 0;
-                exit[i] = if kept { b } else { f64::NEG_INFINITY };
-                *live |= u64::from(kept) << bit;
-                let (a, b) = if kept {
-                    (along(ray, a), along(ray, b))
+                let (a, b, meets) = clip(i);
+                exit[i] = if meets { b } else { f64::NEG_INFINITY };
+                *live |= u64::from(meets) << bit;
+                let (a, b) = if meets {
+                    (along(i, a), along(i, b))
                 } else {
                     (f64::INFINITY, f64::NEG_INFINITY)
                 };
