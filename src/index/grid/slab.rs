@@ -437,7 +437,8 @@ impl Search {
         for w in 0..WORDS {
             let word = rays.word(w);
             if word != u64::MAX {
-                // A few rays (those a visit's tests moved nearer): one by one.
+                // Part of a word (the rays a visit's tests moved nearer, or
+                // a quarter's at the start of its walk): ray by ray.
                 for i in set_bits(word).map(|bit| w * 64 + bit) {
                     let limit = limit_of(i);
                     self.limit[i] = limit;
@@ -447,7 +448,8 @@ impl Search {
                 }
                 continue;
             }
-            // A whole word (the start of a walk): every ray, group by group.
+            // A whole word (the start of a whole packet's walk): every ray,
+            // group by group.
             for g in w * 64 / LANES..(w + 1) * 64 / LANES {
                 let mut nearest = self.group_nearest[g];
                 for i in g * LANES..(g + 1) * LANES {
@@ -744,8 +746,8 @@ impl Level {
         for (w, live) in live.iter_mut().enumerate() {
             let among = among.word(w);
             if among != u64::MAX {
-                // A few rays (a quarter's, or a shadow packet's still
-                // unblocked): those alone.
+                // Part of a word (a quarter's rays, or a shadow packet's
+                // still unblocked): ray by ray.
                 for bit in set_bits(among) {
                     let i = w * 64 + bit;
                     let (a, b, meets) = clip(i);
