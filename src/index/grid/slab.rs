@@ -728,7 +728,9 @@ impl Level {
         exit: &mut [f64; RAYS],
     ) -> (RaySet, f64, f64) {
         let (k, step) = (packet.axis, packet.step as f64);
-        let along = |i: usize, t: f64| (packet.rays[i].o[k] + t * packet.rays[i].d[k]) * step;
+        // `(o_k + t·d_k)·step`, exactly: the step is ±1 and `d_k·step` is
+        // the ray's travel along the axis.
+        let along = |i: usize, t: f64| packet.rays[i].o[k] * step + t * packet.travel[i];
         // Every ray goes the packet's way along its axis: the same two planes.
         let planes = self.planes_across(k, packet.step);
         let clip = |i: usize| {
