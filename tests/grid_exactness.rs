@@ -208,6 +208,9 @@ fn ray(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> Ray<f32> {
 fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
     let brute = BruteForce::new(shapes);
     let grid = VoxelHashGrid::new(shapes);
+    // The same walks compiled for the build's own target, where `grid` runs
+    // the CPU's wider vectors.
+    let baseline = VoxelHashGrid::new(shapes).with_baseline_vectors();
     let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
     let mut rng = Rng::new(seed ^ 0x5eed);
     for _ in 0..rays {
@@ -219,6 +222,7 @@ fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
                 want,
                 "closest_hit {ray:?} in ({t_min}, {t_max})"
             );
+            assert_eq!(baseline.closest_hit(&ray, t_min, t_max), want);
             assert_eq!(probing.closest_hit(&ray, t_min, t_max), want);
         }
         for t_max in [1.0, 0.5, f32::INFINITY] {
@@ -228,6 +232,7 @@ fn check(shapes: &[Ellipsoid<f32>], seed: u64, rays: usize) {
                 want,
                 "any_hit {ray:?} to {t_max}"
             );
+            assert_eq!(baseline.any_hit(&ray, t_max), want);
             assert_eq!(probing.any_hit(&ray, t_max), want);
         }
     }
@@ -367,6 +372,7 @@ fn bundle(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> (Vec3, Vec<Vec3>) {
 fn check_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
     let brute = BruteForce::new(shapes);
     let grid = VoxelHashGrid::new(shapes);
+    let baseline = VoxelHashGrid::new(shapes).with_baseline_vectors();
     let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
     let mut rng = Rng::new(seed ^ 0xb0b);
     for _ in 0..bundles {
@@ -381,7 +387,7 @@ fn check_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
                 .iter()
                 .map(|&d| brute.closest_hit(&Ray::new(origin, d), t_min, t_max))
                 .collect();
-            for index in [&grid, &probing] {
+            for index in [&grid, &baseline, &probing] {
                 let mut got = vec![None; dirs.len()];
                 let answered = index.closest_hits(origin, &dirs, t_min, t_max, &mut got);
                 assert_eq!(answered, Answered::All);

@@ -256,6 +256,37 @@ mod tests {
         proptest::array::uniform16(0.0..1.0f64)
     }
 
+    /// Whether this CPU runs the lane tests compiled with AVX2, as the
+    /// grid's wider kernels inline them (`index::grid::vectors`).
+    #[cfg(target_arch = "x86_64")]
+    fn has_avx2() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+
+    /// [`hits_from_one_origin`] compiled with AVX2 (it is inlined here).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn hits_from_one_origin_avx2(
+        frame: &UnitSphereFrame<f32>,
+        origin: V3<f32>,
+        dir: &LaneVectors<f32>,
+        t_min: f32,
+        cap: &[f32; LANES],
+    ) -> [f32; LANES] {
+        hits_from_one_origin(frame, origin, dir, t_min, cap)
+    }
+
+    /// [`segments_hit`] compiled with AVX2 (it is inlined here).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn segments_hit_avx2(
+        frame: &UnitSphereFrame<f32>,
+        origin: &LaneVectors<f32>,
+        dir: &LaneVectors<f32>,
+    ) -> u32 {
+        segments_hit(frame, origin, dir)
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
 
@@ -266,6 +297,12 @@ mod tests {
             let frame = shape.frame();
             let cap = std::array::from_fn(|i| [f32::INFINITY, 1.0, 0.7, 3.0][i % 4]);
             let lanes = hits_from_one_origin(&frame, start, &dir, t_min, &cap);
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2() {
+                // SAFETY: the function needs AVX2 alone, which this CPU has.
+                let wide = unsafe { hits_from_one_origin_avx2(&frame, start, &dir, t_min, &cap) };
+                prop_assert_eq!(wide.map(f32::to_bits), lanes.map(f32::to_bits));
+            }
             for i in 0..LANES {
                 let ray = Ray::new(start, lane(&dir, i));
                 let want = frame.intersect(&ray, t_min, cap[i]);
@@ -283,6 +320,11 @@ mod tests {
             let (shape, _, origin, dir) = bundle(seed);
             let frame = shape.frame();
             let hit = segments_hit(&frame, &origin, &dir);
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2() {
+                // SAFETY: the function needs AVX2 alone, which this CPU has.
+                prop_assert_eq!(unsafe { segments_hit_avx2(&frame, &origin, &dir) }, hit);
+            }
             for i in 0..LANES {
                 let ray = Ray::new(lane(&origin, i), lane(&dir, i));
                 let want = frame.intersect(&ray, 0.0, 1.0).is_some();

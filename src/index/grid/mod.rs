@@ -34,6 +34,7 @@ mod shadow;
 mod slab;
 mod slopes;
 mod table;
+mod vectors;
 mod walk;
 
 use super::{Answered, Hit, LightBuffers, SphereIndex};
@@ -48,6 +49,7 @@ pub use packet::{
 use rayon::prelude::*;
 use seek::Nearest;
 use table::BlockTable;
+pub use vectors::Vectors;
 
 /// How a ray crosses space no sphere occupies.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -144,6 +146,9 @@ pub struct VoxelHashGrid<R: Real> {
     /// scenes of several levels ([`gate`]).
     gate: Option<Gate>,
     empty_space: EmptySpace,
+    /// Which compiled instance of the kernels runs: never one the CPU
+    /// lacks ([`Vectors::detect`]).
+    vectors: Vectors,
     /// Candidate tests one call for many rays may make ([`TestBudget`]).
     packet_tests: u64,
     lights: Vec<LightBuffer<R>>,
@@ -233,6 +238,7 @@ impl<R: Real> VoxelHashGrid<R> {
             gate: Gate::over(&levels, order.len()),
             levels,
             empty_space: EmptySpace::default(),
+            vectors: Vectors::detect(),
             packet_tests: crate::limits::PACKET_TESTS,
             lights: Vec::new(),
         }
@@ -279,6 +285,19 @@ impl<R: Real> VoxelHashGrid<R> {
     pub fn with_packet_tests(mut self, tests: u64) -> Self {
         self.packet_tests = tests.max(1);
         self
+    }
+
+    /// The same grid, its kernels run as compiled for the build's own
+    /// target whatever the CPU offers beyond it: to check and measure
+    /// both instances on one machine.
+    pub fn with_baseline_vectors(mut self) -> Self {
+        self.vectors = Vectors::Baseline;
+        self
+    }
+
+    /// The instructions the grid's kernels run on.
+    pub fn vectors(&self) -> Vectors {
+        self.vectors
     }
 
     /// The same grid, crossing empty space the way `mode` says.

@@ -11,10 +11,10 @@
 
 use super::cone::PacketCone;
 use super::ray_set::{set_bits, RaySet};
-use super::slab::{Limits, Packet, Searching};
+use super::slab::{Limits, Packet, PacketVisit, Searching};
 use super::slopes::GroupSlopes;
 use super::walk::Ray64;
-use super::{Level, TestBudget, Tests, VoxelHashGrid};
+use super::{Level, TestBudget, Tests, Vectors, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Answered, Hit};
@@ -215,6 +215,8 @@ pub(super) struct GroupCull {
 }
 
 impl GroupCull {
+    /// Inlined into each instance of the packet kernels ([`super::vectors`]).
+    #[inline(always)]
     pub(super) fn new(packet: &Packet, t_min: f64) -> Self {
         GroupCull {
             origin: DVec3::from_array(packet.origin),
@@ -259,7 +261,9 @@ impl PacketMailbox {
 }
 
 /// Aims `packet` at the rays from `origin` along `dirs`; false when a ray
-/// cannot be walked or the rays share no axis of travel.
+/// cannot be walked or the rays share no axis of travel. Inlined into each
+/// instance of the packet kernel ([`super::vectors`]).
+#[inline(always)]
 fn aim_eye_packet<R: Real>(packet: &mut Packet, origin: V3<R>, dirs: &[V3<R>; RAYS]) -> bool {
     for (ray, &dir) in packet.rays.iter_mut().zip(dirs) {
         match Ray64::new(&Ray::<R>::new(origin, dir)) {
@@ -285,8 +289,46 @@ impl<R: Real> VoxelHashGrid<R> {
         Packet::with_spare(|packet| self.eye_packets(packet, origin, dirs, t_min, t_max, out))
     }
 
-    /// [`Self::packet_closest_hits`] with `packet` to aim.
+    /// [`Self::packet_closest_hits`] with `packet` to aim
+    /// ([`Self::eye_packets_body`]), with the widest vectors the grid may
+    /// use ([`super::vectors`]).
     fn eye_packets(
+        &self,
+        packet: &mut Packet,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) -> Answered {
+        #[cfg(target_arch = "x86_64")]
+        if self.vectors == Vectors::Avx2 {
+            // SAFETY: as in `walk_level`: the grid holds `Vectors::Avx2`
+            // only where this CPU has AVX2.
+            return unsafe { self.eye_packets_avx2(packet, origin, dirs, t_min, t_max, out) };
+        }
+        self.eye_packets_body(packet, origin, dirs, t_min, t_max, out)
+    }
+
+    /// [`Self::eye_packets_body`] compiled with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn eye_packets_avx2(
+        &self,
+        packet: &mut Packet,
+        origin: V3<R>,
+        dirs: &[V3<R>],
+        t_min: R,
+        t_max: R,
+        out: &mut [Option<Hit<R>>],
+    ) -> Answered {
+        self.eye_packets_body(packet, origin, dirs, t_min, t_max, out)
+    }
+
+    /// Aims and traces each packet of [`RAYS`] rays in turn; the rays of a
+    /// packet that cannot be aimed go one at a time.
+    #[inline(always)]
+    fn eye_packets_body(
         &self,
         packet: &mut Packet,
         origin: V3<R>,
@@ -355,15 +397,52 @@ impl<R: Real> VoxelHashGrid<R> {
         }
     }
 
+    /// Walks the packet through `level` within the planes `along`
+    /// ([`Self::walk_level_body`]), with the widest vectors the grid may
+    /// use ([`super::vectors`]). Out of line: inlined into
+    /// [`Self::trace_packet`], the walk came out dearer on every file.
+    #[inline(never)]
+    fn walk_level(
+        &self,
+        level: &Level,
+        packet: &Packet,
+        groups: &mut Groups<R>,
+        along: [f64; 2],
+        mailbox: &mut PacketMailbox,
+        cull: &GroupCull,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.vectors == Vectors::Avx2 {
+            // SAFETY: the function needs AVX2 alone, and a grid holds
+            // `Vectors::Avx2` only where `Vectors::detect` found that this
+            // CPU has it (`with_baseline_vectors` only ever narrows).
+            return unsafe { self.walk_level_avx2(level, packet, groups, along, mailbox, cull) };
+        }
+        self.walk_level_body(level, packet, groups, along, mailbox, cull)
+    }
+
+    /// [`Self::walk_level_body`] compiled with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn walk_level_avx2(
+        &self,
+        level: &Level,
+        packet: &Packet,
+        groups: &mut Groups<R>,
+        along: [f64; 2],
+        mailbox: &mut PacketMailbox,
+        cull: &GroupCull,
+    ) {
+        self.walk_level_body(level, packet, groups, along, mailbox, cull)
+    }
+
     /// Walks the packet through `level` within the planes `along`, testing
     /// each candidate new to the mailbox: whole, or quarter by quarter where
     /// a slab's rectangle would span more than [`WIDEST_EYE_CELLS`]. Each
     /// quarter has a mailbox of its own, as a sphere tested against one
-    /// quarter's groups was not tested against another's. Out of line:
-    /// inlined into [`Self::trace_packet`], the walk came out dearer on
-    /// every file.
-    #[inline(never)]
-    fn walk_level(
+    /// quarter's groups was not tested against another's.
+    #[inline(always)]
+    fn walk_level_body(
         &self,
         level: &Level,
         packet: &Packet,
@@ -392,23 +471,13 @@ impl<R: Real> VoxelHashGrid<R> {
                     own.insert(PacketMailbox::new()),
                 ),
             };
-            let walked = level.walk_packet(
-                packet,
-                groups,
-                among,
-                limits,
-                self.empty_space,
-                |ids, groups, searching| {
-                    for &i in ids {
-                        if groups.budget.spent() {
-                            return;
-                        }
-                        if mailbox.first_visit(i) {
-                            self.test_eye_groups(i, cull, groups, searching);
-                        }
-                    }
-                },
-            );
+            let mut visit = EyeCells {
+                grid: self,
+                mailbox,
+                cull,
+            };
+            let walked =
+                level.walk_packet(packet, groups, among, limits, self.empty_space, &mut visit);
             if part == 0 && walked {
                 return;
             }
@@ -425,6 +494,28 @@ impl<R: Real> VoxelHashGrid<R> {
         rays.budget.spend(u64::from(hit.count_ones()));
         for g in set_bits(u64::from(hit)) {
             rays.groups[g].test(&sphere.frame, sphere.id);
+        }
+    }
+}
+
+/// An eye packet's visit of a cell: each candidate new to the mailbox
+/// tested against the groups still searching.
+struct EyeCells<'a, R: Real> {
+    grid: &'a VoxelHashGrid<R>,
+    mailbox: &'a mut PacketMailbox,
+    cull: &'a GroupCull,
+}
+
+impl<R: Real> PacketVisit<Groups<R>> for EyeCells<'_, R> {
+    #[inline(always)]
+    fn cell(&mut self, ids: &[u32], groups: &mut Groups<R>, searching: u32) {
+        for &i in ids {
+            if groups.budget.spent() {
+                return;
+            }
+            if self.mailbox.first_visit(i) {
+                self.grid.test_eye_groups(i, self.cull, groups, searching);
+            }
         }
     }
 }

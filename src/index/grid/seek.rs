@@ -187,7 +187,7 @@ impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
         self.slack = level.slack / wide.length;
         let (start, end) = self.span();
         let span = (greater(start, self.from) - self.slack, end + self.slack);
-        level.walk(wide, span.0, span.1, self.grid.empty_space, self);
+        level.walk(wide, span, self.grid.empty_space, self.grid.vectors, self);
     }
 }
 
@@ -261,7 +261,13 @@ impl<'a, R: Real, B: Tests> SeekBlocker<'a, R, B> {
         let slack = level.slack / wide.length;
         let end = search_end(self.t_max) + slack;
         let start = greater(0.0, self.from) - slack;
-        level.walk(wide, start, end, self.grid.empty_space, self);
+        level.walk(
+            wide,
+            (start, end),
+            self.grid.empty_space,
+            self.grid.vectors,
+            self,
+        );
         self.blocker
     }
 }

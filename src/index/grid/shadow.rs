@@ -35,7 +35,7 @@
 use super::packet::{take_masks, GroupCull, PacketMailbox, ALL_GROUPS, GROUPS, LANES, RAYS};
 use super::ray_set::{set_bits, RaySet};
 use super::seek::SeekBlocker;
-use super::slab::{Limits, Packet, Searching};
+use super::slab::{Limits, Packet, PacketVisit, Searching};
 use super::walk::Ray64;
 use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
@@ -316,27 +316,16 @@ impl<R: Real> VoxelHashGrid<R> {
         // A fresh mailbox: a sphere seen by an earlier walk of other
         // groups was not tested against these.
         let mut mailbox = PacketMailbox::new();
-        level.walk_packet(
-            packet,
-            rays,
-            among,
-            Limits {
-                widest,
-                ..Limits::NONE
-            },
-            self.empty_space,
-            |ids, rays, mut searching| {
-                for &i in ids {
-                    if rays.budget.spent() {
-                        return;
-                    }
-                    // Only a new blocker can close a group.
-                    if mailbox.first_visit(i) && self.test_shadow_groups(i, cull, rays, searching) {
-                        searching &= open_groups(rays);
-                    }
-                }
-            },
-        )
+        let mut visit = ShadowCells {
+            grid: self,
+            mailbox: &mut mailbox,
+            cull,
+        };
+        let limits = Limits {
+            widest,
+            ..Limits::NONE
+        };
+        level.walk_packet(packet, rays, among, limits, self.empty_space, &mut visit)
     }
 
     /// Tests candidate `i` against the groups among `searching` whose rays
@@ -432,4 +421,29 @@ fn open_groups<R: Real>(rays: &ShadowGroups<R>) -> u32 {
     (0..GROUPS).fold(0, |mask, g| {
         mask | u32::from(rays.groups[g].blocked != ALL_LANES) << g
     })
+}
+
+/// A shadow packet's visit of a cell: each candidate new to the mailbox
+/// tested against the groups still open, which a blocker may close.
+struct ShadowCells<'a, R: Real> {
+    grid: &'a VoxelHashGrid<R>,
+    mailbox: &'a mut PacketMailbox,
+    cull: &'a GroupCull,
+}
+
+impl<R: Real> PacketVisit<ShadowGroups<R>> for ShadowCells<'_, R> {
+    #[inline(always)]
+    fn cell(&mut self, ids: &[u32], rays: &mut ShadowGroups<R>, mut searching: u32) {
+        for &i in ids {
+            if rays.budget.spent() {
+                return;
+            }
+            // Only a new blocker can close a group.
+            if self.mailbox.first_visit(i)
+                && self.grid.test_shadow_groups(i, self.cull, rays, searching)
+            {
+                searching &= open_groups(rays);
+            }
+        }
+    }
 }

@@ -49,6 +49,18 @@ pub(super) trait Searching {
     fn take_improved(&mut self) -> RaySet;
 }
 
+/// What a packet's walk does in each occupied cell it reaches.
+///
+/// A trait rather than a closure: its method is inlined into the walk, and
+/// so into each instance of the kernel that walks ([`super::vectors`]),
+/// where a closure's body is a function of its own, compiled once with the
+/// build's own instructions.
+pub(super) trait PacketVisit<S> {
+    /// Offered the sphere ids of an occupied cell that the rays of the
+    /// groups among `searching` (one bit each) may cross.
+    fn cell(&mut self, ids: &[u32], rays: &mut S, searching: u32);
+}
+
 /// The packet's rays in f64 for the walk, and the axis it slabs along.
 pub(super) struct Packet {
     /// The point the rays start from, or start near.
@@ -144,6 +156,8 @@ impl Packet {
     /// Makes this the packet of the rays now in `rays`, which start at or
     /// near `origin`; false when they share no axis of travel (those rays
     /// go one at a time). Reused packet after packet, as it is large.
+    /// Inlined into each instance of the packet kernels ([`super::vectors`]).
+    #[inline(always)]
     pub fn aim(&mut self, origin: [f64; 3]) -> bool {
         self.tile = false;
         // Each ray's unit direction, by a reciprocal and products where a
@@ -202,6 +216,7 @@ impl Packet {
 
     /// [`Packet::aim`] for a tile of eye rays from `origin` (see
     /// [`Packet::tile`]).
+    #[inline(always)]
     pub fn aim_tile(&mut self, origin: [f64; 3]) -> bool {
         let aimed = self.aim(origin);
         self.tile = aimed && self.spread == 0.0;
@@ -421,6 +436,8 @@ impl Search {
     /// Brings the limits of the live rays among `rays` up to date
     /// with their best hits. A limit only shrinks (the best t only moves
     /// nearer), so the nearest limits are kept by taking the least.
+    /// Inlined, as [`Level::walk_packet`] is.
+    #[inline(always)]
     fn update(&mut self, packet: &Packet, reach: impl Fn(usize) -> f64, rays: RaySet) {
         let limit_of = |i: usize| {
             // A ray that starts ahead of the origin along the axis by δ
@@ -576,7 +593,7 @@ impl PlaneCells {
 
 impl Level {
     /// Walks the rays `among` of the packet through this level,
-    /// calling `visit` with the sphere ids of every occupied cell a
+    /// offering `visit` the sphere ids of every occupied cell a
     /// still-searching ray may cross within the slabs that meet
     /// `limits.along`, and the groups (one bit each) with a ray still
     /// searching. False, walking nothing, when those rays fan out
@@ -588,6 +605,10 @@ impl Level {
     /// over a slab and a set of rays its extremes lie on the planes, at the
     /// extreme slopes. Rounding is monotone, so the rectangle of a slab
     /// computed so lies inside that of the layer it belongs to.
+    ///
+    /// Inlined into each caller, so that each instance of a caller's kernel
+    /// ([`super::vectors`]) compiles the walk with its own instructions.
+    #[inline(always)]
     pub(super) fn walk_packet<S: Searching>(
         &self,
         packet: &Packet,
@@ -595,7 +616,7 @@ impl Level {
         among: RaySet,
         limits: Limits,
         empty_space: EmptySpace,
-        mut visit: impl FnMut(&[u32], &mut S, u32),
+        visit: &mut impl PacketVisit<S>,
     ) -> bool {
         let (k, step) = (packet.axis, packet.step);
         let slack: [f64; RAYS] = packet.inv_length.map(|inv| self.slack * inv);
@@ -679,9 +700,8 @@ impl Level {
             let Some(empty_until) = empty_until else {
                 while s * step <= layer_end * step {
                     let leaving = cells.at(&range, delta(entry_plane(s + step)));
-                    self.visit_slab(k, s, Rect::between(&entry, &leaving), &blocks, &mut |ids| {
-                        visit(ids, rays, search.groups)
-                    });
+                    let rect = Rect::between(&entry, &leaving);
+                    self.visit_slab(k, s, rect, &blocks, (visit, rays, search.groups));
                     s += step;
                     entry = leaving;
                     // The tests may have found nearer hits.
@@ -887,14 +907,17 @@ impl Level {
         false
     }
 
-    /// Visits the occupied cells of slab `s` within `rect`.
-    fn visit_slab(
+    /// Offers `visit` the occupied cells of slab `s` within `rect`, with
+    /// the rays and their groups still searching. Inlined, as
+    /// [`Self::walk_packet`] is.
+    #[inline(always)]
+    fn visit_slab<S>(
         &self,
         k: usize,
         s: i64,
         rect: Rect,
         blocks: &LayerBlocks,
-        visit: &mut impl FnMut(&[u32]),
+        (visit, rays, groups): (&mut impl PacketVisit<S>, &mut S, u32),
     ) {
         let (u, v) = ((k + 1) % 3, (k + 2) % 3);
         // A cell's bit in its block, axis by axis (see `cell_bit`).
@@ -917,7 +940,7 @@ impl Level {
                 };
                 let bit = bit_ku | bit_on(v, cv);
                 if let Some(b) = block.filter(|b| b.holds(bit)) {
-                    visit(self.candidates(b.cell_index(bit)));
+                    visit.cell(self.candidates(b.cell_index(bit)), rays, groups);
                 }
             }
         }

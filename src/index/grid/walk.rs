@@ -22,7 +22,7 @@
 use super::occupancy::Heading;
 use super::octant::{OctantRay, Octants, FILTERED_FROM};
 use super::table::{block_key, cell_bit, Block, BlockKey, Region, BLOCK_SHIFT, BLOCK_SIDE};
-use super::{EmptySpace, Level};
+use super::{EmptySpace, Level, Vectors};
 use crate::geometry::{Ray, Real, Vec3Ops};
 use glam::DVec3;
 
@@ -388,17 +388,53 @@ impl Level {
     /// Visits, nearest first, the occupied cells the ray crosses within
     /// [t_lo, t_hi], offering `visit` each one's spheres ([`Visit`]); the
     /// walk stops before entering a cell that starts beyond the t it returns.
+    /// Runs the instance compiled for `vectors` ([`super::vectors`]), which
+    /// must be the grid's.
     ///
-    /// A level whose references keep no octants is walked by an instance
-    /// that never asks for them, so that it costs what a walk without the
-    /// filter would. Out of line: inlined into a search, the filtered
-    /// instance cost mixed 10⁵'s single eye rays 3% more instructions.
+    /// Out of line: inlined into a search, the instance with octants
+    /// ([`Self::walk_clipped`]) cost mixed 10⁵'s single eye rays 3% more
+    /// instructions.
     #[inline(never)]
     pub fn walk(
         &self,
         ray: &Ray64,
-        t_lo: f64,
-        t_hi: f64,
+        (t_lo, t_hi): (f64, f64),
+        empty_space: EmptySpace,
+        vectors: Vectors,
+        visit: &mut impl Visit,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if vectors == Vectors::Avx2 {
+            // SAFETY: the function needs AVX2 alone, and a grid holds
+            // `Vectors::Avx2` (which its walks pass here) only where
+            // `Vectors::detect` found that this CPU has it.
+            return unsafe { self.walk_avx2(ray, (t_lo, t_hi), empty_space, visit) };
+        }
+        let _ = vectors;
+        self.walk_clipped(ray, (t_lo, t_hi), empty_space, visit)
+    }
+
+    /// [`Self::walk_clipped`] compiled with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn walk_avx2(
+        &self,
+        ray: &Ray64,
+        span: (f64, f64),
+        empty_space: EmptySpace,
+        visit: &mut impl Visit,
+    ) {
+        self.walk_clipped(ray, span, empty_space, visit)
+    }
+
+    /// [`Self::walk`] from the ray's clip to the level's box. A level whose
+    /// references keep no octants is walked by an instance that never asks
+    /// for them, so that it costs what a walk without the filter would.
+    #[inline(always)]
+    fn walk_clipped(
+        &self,
+        ray: &Ray64,
+        (t_lo, t_hi): (f64, f64),
         empty_space: EmptySpace,
         visit: &mut impl Visit,
     ) {
