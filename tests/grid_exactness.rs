@@ -482,6 +482,7 @@ fn shadow_bundle(rng: &mut Rng, shapes: &[Ellipsoid<f32>]) -> (Vec3, Vec<Vec3>) 
 fn check_shadow_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
     let brute = BruteForce::new(shapes);
     let grid = VoxelHashGrid::new(shapes);
+    let baseline = VoxelHashGrid::new(shapes).with_baseline_vectors();
     let probing = VoxelHashGrid::new(shapes).with_empty_space(EmptySpace::ProbeEveryCell);
     let mut rng = Rng::new(seed ^ 0x5ad0);
     for _ in 0..bundles {
@@ -490,7 +491,7 @@ fn check_shadow_packets(shapes: &[Ellipsoid<f32>], seed: u64, bundles: usize) {
             .iter()
             .map(|&o| brute.any_hit(&Ray::new(o, light - o), 1.0))
             .collect();
-        for index in [&grid, &probing] {
+        for index in [&grid, &baseline, &probing] {
             let mut got = vec![false; origins.len()];
             assert_eq!(
                 index.any_hits_toward(light, &origins, &mut got),

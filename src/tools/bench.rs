@@ -58,6 +58,9 @@ pub struct BenchResult {
     pub build_s: f64,
     pub index_bytes_per_sphere: f64,
     pub levels: usize,
+    /// The instructions the grid's kernels ran on: `baseline` (the build's
+    /// own target) or `avx2`.
+    pub vectors: String,
     /// Eye rays in packets of [`PACKET_RAYS`] (16×16 pixel tiles), as the renderer traces them.
     pub primary_mrays_s: f64,
     /// Eye rays one at a time.
@@ -226,6 +229,7 @@ pub fn bench_text(name: &str, text: &[u8], baselines: bool) -> Result<BenchResul
         build_s,
         index_bytes_per_sphere: grid.bytes() as f64 / shapes.len().max(1) as f64,
         levels: grid.levels().len(),
+        vectors: grid.vectors().to_string(),
         primary_mrays_s: primary,
         primary_single_mrays_s: mrays(eye.len(), single_s),
         light_buffer_s,

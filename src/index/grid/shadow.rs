@@ -37,7 +37,7 @@ use super::ray_set::{set_bits, RaySet};
 use super::seek::SeekBlocker;
 use super::slab::{Limits, Packet, PacketVisit, Searching};
 use super::walk::Ray64;
-use super::{Level, TestBudget, Tests, VoxelHashGrid};
+use super::{Level, TestBudget, Tests, Vectors, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{bounding_box, Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::Answered;
@@ -68,6 +68,7 @@ impl<R: Real> ShadowLanes<R> {
     }
 
     /// Sets the lanes' rays and forgets what blocked them.
+    #[inline(always)]
     fn aim(&mut self, origins: &[V3<R>], dirs: &[V3<R>]) {
         for (i, (o, d)) in origins.iter().zip(dirs).enumerate().take(LANES) {
             (self.origin[0][i], self.origin[1][i], self.origin[2][i]) = (o.x(), o.y(), o.z());
@@ -131,7 +132,10 @@ fn exact_sum(a: f64, b: f64) -> Option<f64> {
 
 /// Aims `packet` at the rays `origins[i] + t·dirs[i]` walked from their
 /// ends near `light`; false when an end is not exact in f64, a ray cannot be
-/// walked or the rays share no axis of travel.
+/// walked or the rays share no axis of travel. Inlined into each instance
+/// of the packet kernels ([`super::vectors`]), as are the other steps of
+/// a shadow packet's walk.
+#[inline(always)]
 fn aim_shadow_packet<R: Real>(
     packet: &mut Packet,
     light: V3<R>,
@@ -201,8 +205,44 @@ impl<R: Real> VoxelHashGrid<R> {
         Packet::with_spare(|packet| self.shadow_packets(packet, light, origins, out))
     }
 
-    /// [`Self::packet_any_hits_toward`] with `packet` to aim.
+    /// [`Self::packet_any_hits_toward`] with `packet` to aim
+    /// ([`Self::shadow_packets_body`]), with the widest vectors the grid may
+    /// use ([`super::vectors`]).
     fn shadow_packets(
+        &self,
+        packet: &mut Packet,
+        light: V3<R>,
+        origins: &[V3<R>],
+        out: &mut [bool],
+    ) -> Answered {
+        #[cfg(target_arch = "x86_64")]
+        if self.vectors == Vectors::Avx2 {
+            // SAFETY: the function needs AVX2 alone, and a grid holds
+            // `Vectors::Avx2` only where `Vectors::detect` found that this
+            // CPU has it.
+            return unsafe { self.shadow_packets_avx2(packet, light, origins, out) };
+        }
+        self.shadow_packets_body(packet, light, origins, out)
+    }
+
+    /// [`Self::shadow_packets_body`] compiled with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn shadow_packets_avx2(
+        &self,
+        packet: &mut Packet,
+        light: V3<R>,
+        origins: &[V3<R>],
+        out: &mut [bool],
+    ) -> Answered {
+        self.shadow_packets_body(packet, light, origins, out)
+    }
+
+    /// Each packet of [`RAYS`] rays in turn, its first group's rays one at
+    /// a time as a sample of how many are lit; the rest together where the
+    /// sample says enough are, and they fan out little.
+    #[inline(always)]
+    fn shadow_packets_body(
         &self,
         packet: &mut Packet,
         light: V3<R>,
@@ -267,6 +307,7 @@ impl<R: Real> VoxelHashGrid<R> {
     /// Tests the short list, then walks each level with the whole packet,
     /// or group by group where the packet fans out too wide, or ray by ray
     /// where a group does.
+    #[inline(always)]
     fn trace_shadow_packet(&self, packet: &Packet, rays: &mut ShadowGroups<R>) {
         let cull = GroupCull::new(packet, 0.0);
         // Shadow rays toward one light from neighbouring points (the caller
@@ -304,6 +345,7 @@ impl<R: Real> VoxelHashGrid<R> {
 
     /// Walks the rays `among` of the packet through `level` together,
     /// unless they fan out too wide (false).
+    #[inline(always)]
     fn walk_shadow_level(
         &self,
         level: &Level,

@@ -39,3 +39,12 @@ impl Vectors {
         Vectors::Baseline
     }
 }
+
+impl std::fmt::Display for Vectors {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Vectors::Baseline => "baseline",
+            Vectors::Avx2 => "avx2",
+        })
+    }
+}
