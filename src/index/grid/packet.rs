@@ -303,8 +303,9 @@ impl<R: Real> VoxelHashGrid<R> {
     ) -> Answered {
         #[cfg(target_arch = "x86_64")]
         if self.vectors == Vectors::Avx2 {
-            // SAFETY: as in `walk_level`: the grid holds `Vectors::Avx2`
-            // only where this CPU has AVX2.
+            // SAFETY: the function needs AVX2 alone, and a grid holds
+            // `Vectors::Avx2` only where `Vectors::detect` found that this
+            // CPU has it (`with_baseline_vectors` only ever narrows).
             return unsafe { self.eye_packets_avx2(packet, origin, dirs, t_min, t_max, out) };
         }
         self.eye_packets_body(packet, origin, dirs, t_min, t_max, out)

@@ -410,6 +410,8 @@ impl Level {
             // `Vectors::detect` found that this CPU has it.
             return unsafe { self.walk_avx2(ray, (t_lo, t_hi), empty_space, visit) };
         }
+        // Elsewhere the build's own target is the only instance.
+        #[cfg(not(target_arch = "x86_64"))]
         let _ = vectors;
         self.walk_clipped(ray, (t_lo, t_hi), empty_space, visit)
     }
