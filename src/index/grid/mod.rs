@@ -147,7 +147,7 @@ pub struct VoxelHashGrid<R: Real> {
     gate: Option<Gate>,
     empty_space: EmptySpace,
     /// Which compiled instance of the kernels runs: never one the CPU
-    /// lacks ([`Vectors::detect`]).
+    /// lacks ([`Vectors`]).
     vectors: Vectors,
     /// Candidate tests one call for many rays may make ([`TestBudget`]).
     packet_tests: u64,
@@ -291,7 +291,7 @@ impl<R: Real> VoxelHashGrid<R> {
     /// target whatever the CPU offers beyond it: to check and measure
     /// both instances on one machine.
     pub fn with_baseline_vectors(mut self) -> Self {
-        self.vectors = Vectors::Baseline;
+        self.vectors = Vectors::baseline();
         self
     }
 

@@ -14,7 +14,7 @@ use super::ray_set::{set_bits, RaySet};
 use super::slab::{Limits, Packet, PacketVisit, Searching};
 use super::slopes::GroupSlopes;
 use super::walk::Ray64;
-use super::{Level, TestBudget, Tests, Vectors, VoxelHashGrid};
+use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::{Answered, Hit};
@@ -302,10 +302,9 @@ impl<R: Real> VoxelHashGrid<R> {
         out: &mut [Option<Hit<R>>],
     ) -> Answered {
         #[cfg(target_arch = "x86_64")]
-        if self.vectors == Vectors::Avx2 {
-            // SAFETY: the function needs AVX2 alone, and a grid holds
-            // `Vectors::Avx2` only where `Vectors::detect` found that this
-            // CPU has it (`with_baseline_vectors` only ever narrows).
+        if self.vectors.avx2() {
+            // SAFETY: the function needs AVX2 alone, which `Vectors::avx2`
+            // says this CPU has (only `Vectors::detect` can say so).
             return unsafe { self.eye_packets_avx2(packet, origin, dirs, t_min, t_max, out) };
         }
         self.eye_packets_body(packet, origin, dirs, t_min, t_max, out)
@@ -413,10 +412,9 @@ impl<R: Real> VoxelHashGrid<R> {
         cull: &GroupCull,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if self.vectors == Vectors::Avx2 {
-            // SAFETY: the function needs AVX2 alone, and a grid holds
-            // `Vectors::Avx2` only where `Vectors::detect` found that this
-            // CPU has it (`with_baseline_vectors` only ever narrows).
+        if self.vectors.avx2() {
+            // SAFETY: the function needs AVX2 alone, which `Vectors::avx2`
+            // says this CPU has (only `Vectors::detect` can say so).
             return unsafe { self.walk_level_avx2(level, packet, groups, along, mailbox, cull) };
         }
         self.walk_level_body(level, packet, groups, along, mailbox, cull)

@@ -37,7 +37,7 @@ use super::ray_set::{set_bits, RaySet};
 use super::seek::SeekBlocker;
 use super::slab::{Limits, Packet, PacketVisit, Searching};
 use super::walk::Ray64;
-use super::{Level, TestBudget, Tests, Vectors, VoxelHashGrid};
+use super::{Level, TestBudget, Tests, VoxelHashGrid};
 use crate::geometry::lanes::{self, LaneVectors};
 use crate::geometry::{bounding_box, Ray, Real, UnitSphereFrame, Vec3Ops, V3};
 use crate::index::Answered;
@@ -216,10 +216,9 @@ impl<R: Real> VoxelHashGrid<R> {
         out: &mut [bool],
     ) -> Answered {
         #[cfg(target_arch = "x86_64")]
-        if self.vectors == Vectors::Avx2 {
-            // SAFETY: the function needs AVX2 alone, and a grid holds
-            // `Vectors::Avx2` only where `Vectors::detect` found that this
-            // CPU has it.
+        if self.vectors.avx2() {
+            // SAFETY: the function needs AVX2 alone, which `Vectors::avx2`
+            // says this CPU has (only `Vectors::detect` can say so).
             return unsafe { self.shadow_packets_avx2(packet, light, origins, out) };
         }
         self.shadow_packets_body(packet, light, origins, out)

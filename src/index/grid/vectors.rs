@@ -20,31 +20,42 @@
 //! the same rays (`tests/grid_exactness.rs`), and a property test checks
 //! the lane test compiled both ways bit for bit ([`crate::geometry::lanes`]).
 
-/// The instructions a grid's kernels use.
+/// The instructions a grid's kernels use: the build's own target, or AVX2
+/// on an x86-64 CPU that has it.
+///
+/// Its field is private, so only [`Vectors::detect`] can make one that says
+/// AVX2: a kernel may call its AVX2 instance wherever [`Vectors::avx2`]
+/// says so, and that is the whole of the argument each such `unsafe` call
+/// rests on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Vectors {
-    /// The build's own target.
-    Baseline,
-    /// AVX2, on an x86-64 CPU that has it.
-    Avx2,
+pub struct Vectors {
+    avx2: bool,
 }
 
 impl Vectors {
     /// The widest this CPU runs.
     pub fn detect() -> Self {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Vectors::Avx2;
-        }
-        Vectors::Baseline
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
+        Vectors { avx2 }
+    }
+
+    /// The build's own target, on any CPU.
+    pub fn baseline() -> Self {
+        Vectors { avx2: false }
+    }
+
+    /// Whether the CPU runs AVX2 (known, never assumed).
+    #[inline(always)]
+    pub fn avx2(self) -> bool {
+        self.avx2
     }
 }
 
 impl std::fmt::Display for Vectors {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Vectors::Baseline => "baseline",
-            Vectors::Avx2 => "avx2",
-        })
+        f.write_str(if self.avx2 { "avx2" } else { "baseline" })
     }
 }

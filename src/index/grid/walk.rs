@@ -404,10 +404,9 @@ impl Level {
         visit: &mut impl Visit,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if vectors == Vectors::Avx2 {
-            // SAFETY: the function needs AVX2 alone, and a grid holds
-            // `Vectors::Avx2` (which its walks pass here) only where
-            // `Vectors::detect` found that this CPU has it.
+        if vectors.avx2() {
+            // SAFETY: the function needs AVX2 alone, which `Vectors::avx2`
+            // says this CPU has (only `Vectors::detect` can say so).
             return unsafe { self.walk_avx2(ray, (t_lo, t_hi), empty_space, visit) };
         }
         // Elsewhere the build's own target is the only instance.
