@@ -133,8 +133,8 @@ pub const INDEX_BYTES_PER_SPHERE: usize = 64;
 /// bytes a sphere beyond its text).
 pub const INDEX_BUILD_BYTES_PER_SPHERE: usize = 256;
 /// Bytes per sphere the grid's light buffers may hold, all lights together
-/// (about 15 a light on the benchmark families at 10^6 spheres, so some
-/// eight lights get one); building one takes about 110 more for a while.
+/// (about 6–10 a light on the benchmark families at 10^6 spheres, so some
+/// thirteen lights get one); building one takes about 110 more for a while.
 pub const LIGHT_BUFFER_BYTES_PER_SPHERE: usize = 128;
 /// Bytes the light buffers may hold whatever the scene's size, so that a
 /// small scene's lights get them too.

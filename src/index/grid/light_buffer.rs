@@ -5,10 +5,12 @@
 //! A shadow ray toward a point light L ends at L, so whatever blocks it lies
 //! in the direction of its origin as seen from L, and nearer to L than the
 //! origin. Around each light a cube of six faces is cut into texels of
-//! direction; each texel lists the spheres whose bounding ball may meet a
-//! direction through it, with how near to L the ball comes. A shadow ray
-//! looks up its texel and tests the listed spheres whose balls come nearer
-//! to L than its origin, until one blocks: no walk, however far the light.
+//! direction, and the spheres whose bounding balls may meet a direction
+//! through a texel are listed, with how near to L each ball comes, in the
+//! windows of 2×2 texels that hold it ([`footprint`]). A shadow ray looks up
+//! the four windows of its texel and tests the listed spheres whose balls
+//! come nearer to L than its origin, until one blocks: no walk, however far
+//! the light.
 //! Shadow rays from anywhere (eye hits, bounce hits) are answered alike, so
 //! incoherent ones cost no more than coherent ones.
 //!
@@ -41,15 +43,24 @@
 //! `x_b / (s·x_a)` takes its extremes at the corners, so the rectangle of
 //! the corner ratios holds the face coordinates of every such q.
 //!
-//! Each listed sphere also keeps the part of the texel its rectangle covers
-//! ([`footprint`]), which a ray's origin lies in whenever the sphere can
-//! block it.
+//! # Windows
+//! A sphere is listed once in each window from every other texel of its
+//! rectangle's, starting at its first (along each axis): each texel it
+//! covers then lies in exactly one of its windows, and that window is one
+//! of the four holding the texel (from the texel itself and from the ones
+//! before it along each axis), which a ray reads. A sphere about a texel
+//! wide (the texels' side is the spheres' rectangles' root mean square
+//! side) is listed about once, where a list per texel would list it in
+//! about four: fewer entries to build and keep, for lists a ray reads
+//! four of. Each listed sphere keeps the part of its window its rectangle
+//! covers ([`footprint`]), which a ray's origin lies in whenever the sphere
+//! can block it.
 //!
-//! A texel's list is cut at [`MOST_LISTED`] spheres, the nearest by their
+//! A window's list is cut at [`MOST_LISTED`] spheres, the nearest by their
 //! packed distance, and a distance no sphere left out comes nearer than is
-//! kept: a ray whose origin lies beyond it, and that no listed sphere
-//! blocks, goes to the walk. So a ray tests at most that many spheres
-//! here, whatever the scene.
+//! kept: a ray whose origin lies beyond one of its windows', and that no
+//! listed sphere blocks, goes to the walk. So a ray tests at most four
+//! times that many spheres here, whatever the scene.
 
 mod build;
 mod fill;
@@ -60,7 +71,7 @@ pub(super) use build::Scratch;
 
 use super::{Candidate, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
-use footprint::{Footprint, SUB};
+use footprint::{Footprint, SUB, WINDOW};
 use glam::DVec3;
 use listed::{Listed, Steps};
 
@@ -82,12 +93,12 @@ const WIDEN: f64 = 1.0 / (1u64 << 14) as f64;
 const NEAR_DIVISOR: f64 = 64.0;
 /// Texels a side of a tile (see [`Face::index`]).
 const TILE: usize = 8;
-/// Most spheres listed in one texel; past them a ray goes to the walk.
+/// Most spheres listed in one window; past them a ray may go to the walk.
 const MOST_LISTED: usize = 48;
 
 /// One sphere as the build handles it, and in the every-ray list: its
 /// position in the grid's sphere array, and a distance its ball comes no
-/// nearer to the light than (rounded down). The texels' lists keep it
+/// nearer to the light than (rounded down). The windows' lists keep it
 /// packed ([`Listed`]).
 #[derive(Clone, Copy, Debug, Default)]
 struct Entry {
@@ -120,16 +131,27 @@ impl Face {
         ((x - self.lo[k]) * self.per_unit * SUB as f64).floor()
     }
 
-    /// The texel `uv` lies in and its sub-texel there, None outside the
-    /// face's texels.
+    /// The sub-texel `uv` lies in, its column and row counted from the
+    /// face's first, None outside the face's texels.
     #[inline(always)]
-    fn texel(&self, uv: [f64; 2]) -> Option<(usize, Footprint)> {
+    fn point(&self, uv: [f64; 2]) -> Option<[usize; 2]> {
         let (x, y) = (self.fine(uv[0], 0), self.fine(uv[1], 1));
         let inside = x >= 0.0 && y >= 0.0;
         let (x, y) = (x as usize, y as usize);
+        (inside && x / SUB < self.texels[0] && y / SUB < self.texels[1]).then_some([x, y])
+    }
+
+    /// The lists of the windows that hold sub-texel `point`'s texel (those
+    /// from it and from the [`WINDOW`]` − 1` texels before it, along each
+    /// axis), each with the point's sub-texel in that window.
+    #[inline(always)]
+    fn windows(&self, [x, y]: [usize; 2]) -> impl Iterator<Item = (usize, Footprint)> + Clone + '_ {
         let (i, j) = (x / SUB, y / SUB);
-        (inside && i < self.texels[0] && j < self.texels[1])
-            .then(|| (self.index(i, j), Footprint::at(x % SUB, y % SUB)))
+        (0..WINDOW * WINDOW).filter_map(move |w| {
+            let (di, dj) = (w % WINDOW, w / WINDOW);
+            let at = || Footprint::at(di * SUB + x % SUB, dj * SUB + y % SUB);
+            (i >= di && j >= dj).then(|| (self.index(i - di, j - dj), at()))
+        })
     }
 
     /// Texel (i, j)'s place in the buffer's numbering: tile by tile of
@@ -152,21 +174,21 @@ pub(super) struct LightBuffer<R: Real> {
     /// Spheres every ray tests, nearest first.
     always: Vec<Entry>,
     faces: [Face; 6],
-    /// Texel k lists `entries[starts[k]..starts[k + 1]]`, in the grid's
-    /// sphere order, packed by `steps`, each with the part of the texel it
-    /// covers in `footprints`.
+    /// The window from texel k lists `entries[starts[k]..starts[k + 1]]`,
+    /// packed by `steps`, nearest step first (ties by position), each with
+    /// the part of the window it covers in `footprints`.
     starts: Vec<u32>,
     entries: Vec<Listed>,
     footprints: Vec<Footprint>,
     steps: Steps,
-    /// The lists that were cut, by texel: each one's texel and how near to
-    /// the light the first sphere left out of it comes. Kept apart from the
+    /// The lists that were cut, by texel: each one's window's first texel
+    /// and how near to the light the first sphere left out of it comes. Kept apart from the
     /// texels: few lists are cut, and a scene of small spheres spread in
     /// every direction has far more texels than entries.
     cut: Vec<LeftOut>,
 }
 
-/// A cut list's texel, and a distance no sphere left out of it comes nearer
+/// A cut list's window (by its first texel), and a distance no sphere left out of it comes nearer
 /// to the light than.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct LeftOut {
@@ -218,7 +240,7 @@ impl<R: Real> LightBuffer<R> {
         )
     }
 
-    /// How near to the light the first sphere left out of texel k's list
+    /// How near to the light the first sphere left out of window k's list
     /// comes: +∞ for a list shorter than the cut, or one not cut.
     fn left_out(&self, k: usize, listed: usize) -> f32 {
         if listed < MOST_LISTED {
@@ -252,26 +274,33 @@ impl<R: Real> LightBuffer<R> {
             let frame = &spheres[sphere as usize].frame;
             frame.intersect(&ray, R::zero(), R::one()).is_some()
         };
-        // The every-ray list is nearest first, so its first sphere beyond the
-        // origin ends it; a texel's list is in sphere order, each one checked
-        // by its footprint and its step (a few more pass, none that would
-        // block is skipped), before the sphere is read.
+        // Every list is nearest first, so its first sphere beyond the origin
+        // ends it (a window's by its packed step: a few more pass, none that
+        // would block is skipped); a window's spheres are checked by their
+        // footprints before they are read.
         let nearer = |e: &&Entry| f64::from(e.nearest) <= within;
         if (self.always.iter().take_while(nearer)).any(|e| blocks(e.sphere)) {
             return Some(true);
         }
-        let Some((k, point)) = self.faces[f].texel(uv) else {
+        let Some(point) = self.faces[f].point(uv) else {
             return Some(false);
         };
-        let list = self.starts[k] as usize..self.starts[k + 1] as usize;
         let (steps, reach) = (&self.steps, self.steps.step(within));
-        let mut listed = (self.entries[list.clone()].iter())
-            .zip(&self.footprints[list.clone()])
-            .filter(|&(&l, &part)| part.holds(point) && steps.step_of(l) <= reach);
-        if listed.any(|(&l, _)| blocks(steps.sphere(l))) {
-            return Some(true);
+        let windows = self.faces[f].windows(point);
+        let list = |k: usize| self.starts[k] as usize..self.starts[k + 1] as usize;
+        for (k, at) in windows.clone() {
+            let mut listed = (self.entries[list(k)].iter())
+                .zip(&self.footprints[list(k)])
+                .take_while(|&(&l, _)| steps.step_of(l) <= reach)
+                .filter(|&(_, &part)| part.holds(at));
+            if listed.any(|(&l, _)| blocks(steps.sphere(l))) {
+                return Some(true);
+            }
         }
-        (f64::from(self.left_out(k, list.len())) > within).then_some(false)
+        // Unblocked, answered here when no window left out a sphere nearer
+        // to the light than the origin.
+        let complete = |(k, _)| f64::from(self.left_out(k, list(k).len())) > within;
+        { windows }.all(complete).then_some(false)
     }
 }
 

@@ -5,6 +5,7 @@
 use super::fill::{fill_lists, FillScratch, ListBounds, Placements, Split};
 use super::{
     bytes_of, Entry, Face, Footprint, LightBuffer, NoBuffer, Steps, NEAR_DIVISOR, SUB, TILE, WIDEN,
+    WINDOW,
 };
 use crate::geometry::{f32_at_most, Real, Vec3Ops, V3};
 use crate::index::grid::Candidate;
@@ -261,28 +262,28 @@ impl Span {
         }
     }
 
-    /// Calls `visit` with each texel it covers and its footprint there.
+    /// Calls `visit` with each window it is listed in (by the window's
+    /// first texel) and its footprint there: the windows at every
+    /// [`WINDOW`]th texel from its first along each axis, so that each
+    /// texel it covers lies in exactly one of them, and that one is among
+    /// the [`WINDOW`] windows holding the texel (`Face::windows`).
     #[inline(always)]
     pub(super) fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, Footprint)) {
         let face = &faces[usize::from(self.face)];
         let [lo, hi] = [self.lo, self.hi].map(|e| e.map(|x| x as usize));
-        // The sub-texels covered in texel `i` along axis k: all of them but
-        // in the first and last texels.
+        // The sub-texels covered in the window from texel `i` along axis k,
+        // counted from the window's first.
         let part = |k: usize, i: usize| {
-            let first = if i == lo[k] / SUB { lo[k] % SUB } else { 0 };
-            let last = if i == hi[k] / SUB {
-                hi[k] % SUB
-            } else {
-                SUB - 1
-            };
-            [first, last]
+            let first = i * SUB;
+            let last = first + WINDOW * SUB - 1;
+            [lo[k].max(first) - first, hi[k].min(last) - first]
         };
         // Face::index, split into the row's part and the column's.
         let tile_row = face.texels[0] * TILE;
-        for j in lo[1] / SUB..hi[1] / SUB + 1 {
+        for j in (lo[1] / SUB..hi[1] / SUB + 1).step_by(WINDOW) {
             let row = face.first + j / TILE * tile_row + j % TILE * TILE;
             let rows = part(1, j);
-            for i in lo[0] / SUB..hi[0] / SUB + 1 {
+            for i in (lo[0] / SUB..hi[0] / SUB + 1).step_by(WINDOW) {
                 let footprint = Footprint::of(part(0, i), rows);
                 visit(row + i / TILE * TILE * TILE + i % TILE, footprint);
             }
@@ -489,8 +490,8 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
-        /// A point of a sphere's rectangle looks up a texel the sphere is
-        /// listed in, and lies in its footprint there, at any scale and
+        /// A point of a sphere's rectangle looks up exactly one window the
+        /// sphere is listed in whose footprint holds it, at any scale and
         /// with rectangles reaching past the face's texels.
         #[test]
         fn a_point_of_a_rectangle_lies_in_its_footprint(
@@ -514,14 +515,14 @@ mod tests {
             };
             let uv = [0, 1].map(|k| rect.lo[k] + at[k] * (rect.hi[k] - rect.lo[k]));
             let uv = [0, 1].map(|k| uv[k].clamp(rect.lo[k], rect.hi[k]));
-            if let Some((texel, point)) = face.texel(uv) {
-                let mut found = None;
-                face.span(0, &rect).for_each(&[face; 6], |k, part| {
-                    if k == texel {
-                        found = Some(part);
-                    }
-                });
-                prop_assert!(found.is_some_and(|part| part.holds(point)), "{:?}", found);
+            if let Some(point) = face.point(uv) {
+                let mut listed = Vec::new();
+                face.span(0, &rect).for_each(&[face; 6], |k, part| listed.push((k, part)));
+                let holding = |&(k, at): &(usize, Footprint)| {
+                    listed.iter().any(|&(l, part)| l == k && part.holds(at))
+                };
+                let found = face.windows(point).filter(holding).count();
+                prop_assert_eq!(found, 1, "{:?}", listed);
             }
         }
     }

@@ -1,14 +1,18 @@
-//! A light buffer's lists, filled from the texels each sphere covers: a
+//! A light buffer's lists, filled from the windows each sphere is listed in
+//! (by each window's first texel, [`super::footprint`]): a
 //! counting sort, parallel over runs of spheres, each list in sphere order,
-//! each longer than [`MOST_LISTED`] then cut to its nearest entries.
+//! each longer than [`MOST_LISTED`] then cut to its nearest entries, and
+//! every list then sorted nearest first.
 
 use super::build::Span;
 use super::{Entry, Face, Footprint, LeftOut, Listed, NoBuffer, Steps, MOST_LISTED};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, AtomicU8, Ordering::Relaxed};
+use std::sync::atomic::{AtomicU16, AtomicU32, Ordering::Relaxed};
 
 /// Parts per thread in filling the lists.
 const PARTS_PER_THREAD: usize = 4;
+/// Lists a task of the sort takes at least.
+const LISTS_PER_SORT_TASK: usize = 1 << 10;
 /// Most bytes a sphere the parts' texel counts may take together.
 const COUNT_BYTES_PER_SPHERE: usize = 16;
 
@@ -21,7 +25,7 @@ pub(super) struct Placements<'a> {
 
 impl<'a> Placements<'a> {
     /// The placements cut into `parts` runs of consecutive spheres, the
-    /// spheres on several faces with the last: each texel's list takes the
+    /// spheres on several faces with the last: each window's list takes the
     /// parts' entries in turn, so it comes out in sphere order whatever the
     /// cut.
     fn parts(&self, parts: usize) -> Vec<Part<'a>> {
@@ -80,7 +84,7 @@ pub(in crate::index::grid) struct FillScratch {
     /// the parts write their own places of each list at once.
     listed: Vec<AtomicU32>,
     /// Each entry's footprint ([`Footprint`]'s bits), at the same place.
-    footprints: Vec<AtomicU8>,
+    footprints: Vec<AtomicU16>,
 }
 
 /// A list to be cut: its texel, and its entries' places `from..to` in the
@@ -97,7 +101,7 @@ struct ToCut {
 /// buffer's.
 const TO_CUT: u32 = 1 << 31;
 
-/// The texels' lists of the spheres `placements` place, cut at
+/// The windows' lists of the spheres `placements` place, cut at
 /// [`MOST_LISTED`]: their starts, the entries, and the cut lists' nearest
 /// distances left out. None past `most` entries before the cut.
 ///
@@ -107,8 +111,8 @@ const TO_CUT: u32 = 1 << 31;
 /// work on each thread wherever the spheres' texels lie. A list kept whole
 /// is written straight to its place in the buffer; a longer one goes to
 /// scratch, to be cut to its nearest entries in a pass of its own. Most
-/// lists are short, so most entries are written once. A list keeps its
-/// order (the spheres', which is the grid's cell order) unless it is cut.
+/// lists are short, so most entries are written once. Each list is then
+/// sorted nearest step first, ties by position.
 ///
 /// Lists past their `bounds` are refused by the count alone, before any
 /// entry is written.
@@ -145,10 +149,10 @@ pub(super) fn fill_lists(
     listed.resize_with(layout.to_cut, || AtomicU32::new(0));
     footprints.clear();
     footprints.reserve(bounds.most);
-    footprints.resize_with(layout.to_cut, || AtomicU8::new(0));
+    footprints.resize_with(layout.to_cut, || AtomicU16::new(0));
     let kept = layout.kept;
     let kept_entries: Vec<AtomicU32> = (0..kept).into_par_iter().map(|_| 0.into()).collect();
-    let kept_footprints: Vec<AtomicU8> = (0..kept).into_par_iter().map(|_| 0.into()).collect();
+    let kept_footprints: Vec<AtomicU16> = (0..kept).into_par_iter().map(|_| 0.into()).collect();
     let whole = Filled {
         listed: &kept_entries,
         footprints: &kept_footprints,
@@ -160,6 +164,7 @@ pub(super) fn fill_lists(
     let steps = &bounds.steps;
     write_entries(faces, &parts, counts, |i| steps.pack(entry(i)), whole, cut);
     let cut = cut_lists(long, cut, whole, &layout.starts, bounds.steps);
+    sort_lists(&layout.starts, whole);
     Ok(Lists {
         starts: layout.starts,
         entries: (kept_entries.into_iter())
@@ -274,7 +279,7 @@ pub(super) struct ListBounds<F> {
 #[derive(Clone, Copy)]
 struct Filled<'a> {
     listed: &'a [AtomicU32],
-    footprints: &'a [AtomicU8],
+    footprints: &'a [AtomicU16],
 }
 
 impl Filled<'_> {
@@ -287,15 +292,15 @@ impl Filled<'_> {
     /// entry does (the footprint below it), for the cut to select by.
     fn word(&self, at: usize) -> u64 {
         let entry = self.listed[at].load(Relaxed);
-        u64::from(entry) << 8 | u64::from(self.footprints[at].load(Relaxed))
+        u64::from(entry) << 16 | u64::from(self.footprints[at].load(Relaxed))
     }
 }
 
 /// An entry and its footprint from [`Filled::word`]'s word.
 fn unpack(word: u64) -> (Listed, Footprint) {
     (
-        Listed::from_bits((word >> 8) as u32),
-        Footprint::from_bits(word as u8),
+        Listed::from_bits((word >> 16) as u32),
+        Footprint::from_bits(word as u16),
     )
 }
 
@@ -365,6 +370,28 @@ fn cut_lists(
         .collect()
 }
 
+/// Sorts each list of `kept` (texel k's at `starts[k]..starts[k + 1]`)
+/// nearest step first, ties by position: a ray then reads a list only as
+/// far as the spheres nearer to the light than its origin, and meets them
+/// in an order independent of the threads'.
+fn sort_lists(starts: &[u32], kept: Filled) {
+    (starts.par_windows(2))
+        .with_min_len(LISTS_PER_SORT_TASK)
+        .for_each_init(Vec::new, |list, at| {
+            let at = at[0] as usize..at[1] as usize;
+            if at.len() < 2 {
+                return;
+            }
+            list.clear();
+            list.extend(at.clone().map(|i| kept.word(i)));
+            list.sort_unstable();
+            for (i, &word) in at.zip(list.iter()) {
+                let (entry, footprint) = unpack(word);
+                kept.put(i, entry, footprint);
+            }
+        });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -414,7 +441,7 @@ mod tests {
 
     /// The packing of the test lists' spheres and distances.
     fn steps() -> Steps {
-        Steps::new(3000, 1000.0).unwrap()
+        Steps::new(1 << 14, 1000.0).unwrap()
     }
 
     /// Bounds no list reaches.
@@ -443,17 +470,17 @@ mod tests {
     /// The order a long list is cut in: nearest step first, ties by
     /// position, and a sphere listed twice in one texel (these tests place
     /// spheres on two faces at random) by its footprint.
-    fn cut_order(e: &Entry, part: Footprint) -> (u32, u32, u8) {
+    fn cut_order(e: &Entry, part: Footprint) -> (u32, u32, u16) {
         (step_of(e), e.sphere, part.bits())
     }
 
-    /// A texel's list: each sphere and its footprint there.
+    /// A window's list: each sphere and its footprint there.
     type List = Vec<(u32, Footprint)>;
 
-    /// Each texel's list as one sphere at a time would build it: in sphere
-    /// order, spheres on several faces last; a long one sorted nearest step
-    /// first (ties by position) and cut, with the floor of the first step
-    /// left out, which is below every distance left out.
+    /// Each window's list as one sphere at a time would build it: sorted
+    /// nearest step first (ties by position), and a long one cut, with the
+    /// floor of the first step left out, which is below every distance left
+    /// out.
     fn one_by_one(faces: &[Face; 6], p: &Placements, entries: &[Entry]) -> Vec<(List, f32)> {
         let mut lists = vec![Vec::new(); 512];
         for (i, span) in p.spans.iter().enumerate().filter(|(_, s)| s.listed) {
@@ -465,8 +492,8 @@ mod tests {
         (lists.into_iter())
             .map(|mut list| {
                 let mut complete = f32::INFINITY;
+                list.sort_by_key(|&(e, part)| cut_order(&e, part));
                 if list.len() > MOST_LISTED {
-                    list.sort_by_key(|&(e, part)| cut_order(&e, part));
                     complete = steps().floor_of(step_of(&list[MOST_LISTED].0));
                     assert!(list[MOST_LISTED..]
                         .iter()
@@ -486,14 +513,14 @@ mod tests {
     #[test]
     fn lists_do_not_depend_on_how_the_work_is_split() {
         let faces = two_faces();
-        for (spheres, seed) in [(0, 1), (7, 2), (300, 3), (3000, 4)] {
+        for (spheres, seed) in [(0, 1), (7, 2), (300, 3), (3000, 4), (12000, 5)] {
             let (spans, several, entries) = placements(spheres, seed);
             let p = Placements {
                 spans: &spans,
                 several: &several,
             };
             let want = one_by_one(&faces, &p, &entries);
-            assert!(spheres < 3000 || want.iter().any(|(_, c)| c.is_finite()));
+            assert!(spheres < 12000 || want.iter().any(|(_, c)| c.is_finite()));
             for parts in [1, 2, 7, 64] {
                 let split = Split { parts };
                 let entry = |i: u32| entries[i as usize];
@@ -517,15 +544,10 @@ mod tests {
                 };
                 for (k, (list, within)) in want.iter().enumerate() {
                     let at = starts[k] as usize..starts[k + 1] as usize;
-                    let mut mine: List = (got[at.clone()].iter())
+                    let mine: List = (got[at.clone()].iter())
                         .zip(&footprints[at])
                         .map(|(&e, &part)| (steps().sphere(e), part))
                         .collect();
-                    if within.is_finite() {
-                        // A cut list's order is the selection's; its spheres
-                        // are the reference's.
-                        mine.sort_by_key(|&(i, part)| cut_order(&entries[i as usize], part));
-                    }
                     assert_eq!(
                         (&mine, left_out(k)),
                         (list, *within),

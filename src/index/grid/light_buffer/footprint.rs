@@ -1,13 +1,15 @@
-//! Where in a texel a listed sphere may block: the texel cut into
-//! [`SUB`]×[`SUB`] sub-texels, and the rectangle of them the sphere's
-//! rectangle of directions covers, in one byte beside its entry.
+//! Where in a window a listed sphere may block: the window of
+//! [`WINDOW`]×[`WINDOW`] texels cut into sub-texels, [`SUB`] a texel side,
+//! and the rectangle of them the sphere's rectangle of directions covers,
+//! in two bytes beside its entry.
 //!
-//! A texel lists every sphere whose rectangle reaches any part of it, so a
-//! ray tests spheres whose rectangles cover another corner of its texel:
-//! with texels about as wide as a sphere, some four listed for each one
-//! its direction meets. The footprint lets a ray skip those on a byte it
-//! reads in order, without loading the sphere; with a quarter of a texel's
-//! side, a sphere's listed area shrinks from (s + w)² toward (s + w/4)².
+//! A list belongs to a window of texels (`super::Face::windows` says
+//! which), and lists every sphere listed there, so a ray reads spheres
+//! whose rectangles cover other parts of the window: some four listed for
+//! each one its direction meets, with windows about twice a sphere wide.
+//! The footprint lets a ray skip those on two bytes it reads in order,
+//! without loading the sphere; with a quarter of a texel's side, a
+//! sphere's listed area shrinks from about (s + 2w)² toward (s + w/4)².
 //!
 //! # Why no blocker is skipped
 //! A ray is looked up by its origin's face coordinates, and every sphere
@@ -16,41 +18,48 @@
 //! a rectangle's edges come from one expression, `⌊(x − lo)·per_unit·SUB⌋`
 //! (`Face::fine`), monotone in x, so a coordinate between a rectangle's
 //! edges has a sub-texel between theirs: the ray's point lies in the
-//! footprint of every sphere whose rectangle holds it.
+//! footprint of every sphere whose rectangle holds it, in the one window
+//! of its four that lists the sphere (`Span::for_each`).
 
 /// Sub-texels a texel side: a power of two, so that the scaling by it is
-/// exact, and four of them fit a nibble.
+/// exact.
 pub(super) const SUB: usize = 4;
+/// Texels a window side: a sphere is listed in the windows at every other
+/// texel from its first, so a ray reads the two windows along each axis
+/// that hold its texel.
+pub(super) const WINDOW: usize = 2;
+/// Sub-texels a window side: one bit each in a byte.
+const ACROSS: usize = SUB * WINDOW;
 
-/// A rectangle of sub-texels: columns in the low nibble, rows in the high
-/// one, a bit each.
+/// A rectangle of a window's sub-texels: columns in the low byte, rows in
+/// the high one, a bit each.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(super) struct Footprint(u8);
+pub(super) struct Footprint(u16);
 
-/// The bits `lo..=hi` of a nibble (`lo ≤ hi < SUB`).
-fn run(lo: usize, hi: usize) -> u8 {
-    ((1u8 << (hi + 1)) - 1) & !((1u8 << lo) - 1)
+/// The bits `lo..=hi` of a byte (`lo ≤ hi < ACROSS`).
+fn run(lo: usize, hi: usize) -> u16 {
+    ((1u16 << (hi + 1)) - 1) & !((1u16 << lo) - 1)
 }
 
 impl Footprint {
     /// Columns `cols[0]..=cols[1]` of rows `rows[0]..=rows[1]`.
     #[inline(always)]
     pub(super) fn of(cols: [usize; 2], rows: [usize; 2]) -> Self {
-        Footprint(run(cols[0], cols[1]) | run(rows[0], rows[1]) << SUB)
+        Footprint(run(cols[0], cols[1]) | run(rows[0], rows[1]) << ACROSS)
     }
 
     /// The one sub-texel in column `col` and row `row`.
     #[inline(always)]
     pub(super) fn at(col: usize, row: usize) -> Self {
-        Footprint(1 << col | 1 << (row + SUB))
+        Footprint(1 << col | 1 << (row + ACROSS))
     }
 
     /// Its bits, for the build's shared lists.
-    pub(super) fn bits(self) -> u8 {
+    pub(super) fn bits(self) -> u16 {
         self.0
     }
 
-    pub(super) fn from_bits(bits: u8) -> Self {
+    pub(super) fn from_bits(bits: u16) -> Self {
         Footprint(bits)
     }
 
@@ -65,9 +74,9 @@ impl Footprint {
 mod tests {
     use super::*;
 
-    /// Every run `lo..=hi` of sub-texels along one side.
+    /// Every run `lo..=hi` of sub-texels along one side of a window.
     fn runs() -> impl Iterator<Item = [usize; 2]> + Clone {
-        (0..SUB).flat_map(|lo| (lo..SUB).map(move |hi| [lo, hi]))
+        (0..ACROSS).flat_map(|lo| (lo..ACROSS).map(move |hi| [lo, hi]))
     }
 
     #[test]
@@ -75,7 +84,7 @@ mod tests {
         let rectangles = runs().flat_map(|cols| runs().map(move |rows| (cols, rows)));
         for (cols, rows) in rectangles {
             let rect = Footprint::of(cols, rows);
-            for (col, row) in (0..SUB).flat_map(|col| (0..SUB).map(move |row| (col, row))) {
+            for (col, row) in (0..ACROSS).flat_map(|col| (0..ACROSS).map(move |row| (col, row))) {
                 let inside =
                     (cols[0]..=cols[1]).contains(&col) && (rows[0]..=rows[1]).contains(&row);
                 assert_eq!(

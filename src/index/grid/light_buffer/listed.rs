@@ -1,7 +1,8 @@
-//! One sphere of a texel's list in one 32-bit word.
+//! One sphere of a window's list in one 32-bit word.
 //!
-//! The lists are nearly all of a buffer's bytes (about 3.4 entries a sphere
-//! a light on the benchmark families, against one texel a sphere), and an
+//! The lists are nearly all of a buffer's bytes (about 1.2–1.4 entries a
+//! sphere a light on the benchmark families, against one texel a sphere;
+//! some 3.2–4 with a list per texel), and an
 //! entry only needs the sphere and enough of its distance to skip the
 //! spheres a ray's origin is nearer to the light than. So the sphere's
 //! position takes the low bits, as many as the grid's sphere count needs,
