@@ -182,14 +182,14 @@ pub(super) struct LightBuffer<R: Real> {
     footprints: Vec<Footprint>,
     steps: Steps,
     /// The lists that were cut, by texel: each one's window's first texel
-    /// and how near to the light the first sphere left out of it comes. Kept apart from the
-    /// texels: few lists are cut, and a scene of small spheres spread in
-    /// every direction has far more texels than entries.
+    /// and how near to the light the first sphere left out of it comes.
+    /// Kept apart from the texels: few lists are cut, and a scene of small
+    /// spheres spread in every direction has far more texels than entries.
     cut: Vec<LeftOut>,
 }
 
-/// A cut list's window (by its first texel), and a distance no sphere left out of it comes nearer
-/// to the light than.
+/// A cut list's window (by its first texel), and a distance no sphere left
+/// out of it comes nearer to the light than.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct LeftOut {
     texel: u32,

@@ -266,7 +266,7 @@ impl Span {
     /// first texel) and its footprint there: the windows at every
     /// [`WINDOW`]th texel from its first along each axis, so that each
     /// texel it covers lies in exactly one of them, and that one is among
-    /// the [`WINDOW`] windows holding the texel (`Face::windows`).
+    /// the windows holding the texel that a ray reads (`Face::windows`).
     #[inline(always)]
     pub(super) fn for_each(&self, faces: &[Face; 6], mut visit: impl FnMut(usize, Footprint)) {
         let face = &faces[usize::from(self.face)];

@@ -467,9 +467,9 @@ mod tests {
         steps().step(f64::from(e.nearest))
     }
 
-    /// The order a long list is cut in: nearest step first, ties by
-    /// position, and a sphere listed twice in one texel (these tests place
-    /// spheres on two faces at random) by its footprint.
+    /// The order every list is sorted and a long one cut in: nearest step
+    /// first, ties by position, and a sphere listed twice in one window
+    /// (these tests place spheres on two faces at random) by its footprint.
     fn cut_order(e: &Entry, part: Footprint) -> (u32, u32, u16) {
         (step_of(e), e.sphere, part.bits())
     }

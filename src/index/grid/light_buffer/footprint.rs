@@ -8,8 +8,9 @@
 //! whose rectangles cover other parts of the window: some four listed for
 //! each one its direction meets, with windows about twice a sphere wide.
 //! The footprint lets a ray skip those on two bytes it reads in order,
-//! without loading the sphere; with a quarter of a texel's side, a
-//! sphere's listed area shrinks from about (s + 2w)² toward (s + w/4)².
+//! without loading the sphere; with sub-texels a quarter of a texel's side
+//! w, the area where rays test a sphere shrinks from its window's, about
+//! (2w)², toward (s + w/4)².
 //!
 //! # Why no blocker is skipped
 //! A ray is looked up by its origin's face coordinates, and every sphere

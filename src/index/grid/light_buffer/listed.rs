@@ -1,14 +1,14 @@
 //! One sphere of a window's list in one 32-bit word.
 //!
-//! The lists are nearly all of a buffer's bytes (about 1.2–1.4 entries a
-//! sphere a light on the benchmark families, against one texel a sphere;
-//! some 3.2–4 with a list per texel), and an
-//! entry only needs the sphere and enough of its distance to skip the
-//! spheres a ray's origin is nearer to the light than. So the sphere's
-//! position takes the low bits, as many as the grid's sphere count needs,
-//! and the rest hold how near its ball comes to the light in steps of
-//! `farthest / 2^bits`, rounded down: 12 bits (4096 steps) at 10⁶ spheres,
-//! 7 at the 2·10⁷ of [`crate::limits::MAX_SPHERES`].
+//! The lists are nearly all of a buffer's bytes (about 1.1–1.45 entries a
+//! sphere a light on the benchmark families, 3.2–4 with a list per texel,
+//! against 0.2–0.6 texels a sphere), and an entry only needs the sphere and
+//! enough of its distance to skip the spheres a ray's origin is nearer to
+//! the light than. So the sphere's position takes the low bits, as many as
+//! the grid's sphere count needs, and the rest hold how near its ball comes
+//! to the light in steps of `farthest / 2^bits`, rounded down: 12 bits
+//! (4096 steps) at 10⁶ spheres, 7 at the 2·10⁷ of
+//! [`crate::limits::MAX_SPHERES`].
 //!
 //! # Why the lists still answer exactly
 //! A ray from origin at distance `within` tests the listed spheres with
