@@ -259,12 +259,14 @@ impl<R: Real> VoxelHashGrid<R> {
             .max(crate::limits::LIGHT_BUFFER_MIN_BYTES);
         let mut used = 0;
         let mut scratch = light_buffer::Scratch::default();
-        for &light in lights {
+        let farthest = light_buffer::farthest_from(&self.spheres, &self.short, lights);
+        for (&light, farthest) in lights.iter().zip(farthest) {
             if self.light_buffer(light).is_some() {
                 continue;
             }
             let room = budget - used;
-            match LightBuffer::new(&self.spheres, &self.short, light, room, &mut scratch) {
+            let (spheres, short) = (&self.spheres, &self.short);
+            match LightBuffer::new(spheres, short, light, farthest, room, &mut scratch) {
                 Ok(buffer) => {
                     used += buffer.bytes();
                     self.lights.push(buffer);
@@ -452,7 +454,7 @@ impl<R: Real> VoxelHashGrid<R> {
 
 #[cfg(test)]
 mod tests {
-    use super::light_buffer::{NoBuffer, Scratch};
+    use super::light_buffer::{farthest_from, NoBuffer, Scratch};
     use super::{Candidate, LightBuffer, VoxelHashGrid};
     use crate::geometry::Ellipsoid;
     use glam::Vec3;
@@ -485,8 +487,9 @@ mod tests {
         // Far off, and just outside a sphere (which every ray then tests).
         let beside = shapes[17].center + Vec3::new(0.1, 0.0, 0.0);
         for light in [Vec3::new(9.0, 7.0, 12.0), beside] {
+            let farthest = farthest_from(&grid.spheres, &grid.short, &[light])[0];
             let build = |room: usize, scratch: &mut Scratch| {
-                LightBuffer::new(&grid.spheres, &grid.short, light, room, scratch)
+                LightBuffer::new(&grid.spheres, &grid.short, light, farthest, room, scratch)
             };
             let bytes = build(usize::MAX, scratch).unwrap().bytes();
             assert_eq!(build(bytes, scratch).unwrap().bytes(), bytes, "{light}");

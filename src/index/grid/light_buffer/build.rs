@@ -322,14 +322,49 @@ pub(in crate::index::grid) struct Scratch {
     fill: FillScratch,
 }
 
+/// For each of `lights`, how far from it the balls of `spheres` (the
+/// grid's copies) reach, the grid's `short` list left out, with a margin:
+/// every origin a light's buffer answers lies within it. One pass over the
+/// spheres for all the lights, since it reads each sphere and does little
+/// with it.
+pub(in crate::index::grid) fn farthest_from<R: Real>(
+    spheres: &[Candidate<R>],
+    short: &[u32],
+    lights: &[V3<R>],
+) -> Vec<f64> {
+    let lights: Vec<DVec3> = lights.iter().map(|l| l.to_dvec3()).collect();
+    let mut is_short = vec![false; spheres.len()];
+    for &i in short {
+        is_short[i as usize] = true;
+    }
+    let none = || vec![0.0_f64; lights.len()];
+    (spheres.par_iter().zip(&is_short))
+        .filter(|(_, &short)| !short)
+        .fold(none, |mut farthest, (s, _)| {
+            let (center, r) = (s.frame.center.to_dvec3(), s.bound.to_f64());
+            for (farthest, &light) in farthest.iter_mut().zip(&lights) {
+                *farthest = farthest.max(((center - light).abs() + r).length());
+            }
+            farthest
+        })
+        .reduce(none, |a, b| {
+            a.iter().zip(&b).map(|(a, b)| a.max(*b)).collect()
+        })
+        .into_iter()
+        .map(|farthest| farthest * (1.0 + 1.0 / 1024.0))
+        .collect()
+}
+
 impl<R: Real> LightBuffer<R> {
     /// The buffer of `light` over `spheres` (the grid's copies), with the
-    /// grid's `short` list tested by every ray, holding at most `room`
-    /// bytes ([`LightBuffer::bytes`]).
+    /// grid's `short` list tested by every ray, for origins within
+    /// `farthest` of the light (from [`farthest_from`]), holding at most
+    /// `room` bytes ([`LightBuffer::bytes`]).
     pub(in crate::index::grid) fn new(
         spheres: &[Candidate<R>],
         short: &[u32],
         light: V3<R>,
+        farthest: f64,
         room: usize,
         scratch: &mut Scratch,
     ) -> Result<Self, NoBuffer> {
@@ -346,22 +381,14 @@ impl<R: Real> LightBuffer<R> {
             is_short[i as usize] = true;
         }
         let ball = |s: &Candidate<R>| (s.frame.center.to_dvec3() - light64, s.bound.to_f64());
-        // Every origin answered here lies within the listed spheres' box.
-        let farthest = (spheres.par_iter().zip(&*is_short))
-            .filter(|(_, &short)| !short)
-            .map(|(s, _)| {
-                let (x, r) = ball(s);
-                (x.abs() + r).length()
-            })
-            .reduce(|| 0.0, f64::max)
-            * (1.0 + 1.0 / 1024.0);
         if !(farthest.is_finite() && farthest > 0.0) {
             return Err(NoBuffer::Unsuited);
         }
         let steps = Steps::new(spheres.len(), farthest).ok_or(NoBuffer::Unsuited)?;
         let near = farthest / NEAR_DIVISOR;
         // Each sphere as the light sees it, and what their rectangles cover.
-        seen.clear();
+        // Every one is written below: what the light before left needs no
+        // clearing.
         seen.resize(spheres.len(), Seen::default());
         let cover = (seen.par_chunks_mut(SPHERES_PER_TASK))
             .zip(spheres.par_chunks(SPHERES_PER_TASK))
