@@ -67,7 +67,7 @@ mod fill;
 mod footprint;
 mod listed;
 
-pub(super) use build::{farthest_from, Scratch};
+pub(super) use build::{farthest_from, short_marks, Scratch};
 
 use super::{Candidate, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};

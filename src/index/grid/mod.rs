@@ -259,14 +259,15 @@ impl<R: Real> VoxelHashGrid<R> {
             .max(crate::limits::LIGHT_BUFFER_MIN_BYTES);
         let mut used = 0;
         let mut scratch = light_buffer::Scratch::default();
-        let farthest = light_buffer::farthest_from(&self.spheres, &self.short, lights);
+        let is_short = light_buffer::short_marks(self.spheres.len(), &self.short);
+        let farthest = light_buffer::farthest_from(&self.spheres, &is_short, lights);
         for (&light, farthest) in lights.iter().zip(farthest) {
             if self.light_buffer(light).is_some() {
                 continue;
             }
             let room = budget - used;
-            let (spheres, short) = (&self.spheres, &self.short);
-            match LightBuffer::new(spheres, short, light, farthest, room, &mut scratch) {
+            let spheres = &self.spheres;
+            match LightBuffer::new(spheres, &is_short, light, farthest, room, &mut scratch) {
                 Ok(buffer) => {
                     used += buffer.bytes();
                     self.lights.push(buffer);
@@ -454,7 +455,7 @@ impl<R: Real> VoxelHashGrid<R> {
 
 #[cfg(test)]
 mod tests {
-    use super::light_buffer::{farthest_from, NoBuffer, Scratch};
+    use super::light_buffer::{farthest_from, short_marks, NoBuffer, Scratch};
     use super::{Candidate, LightBuffer, VoxelHashGrid};
     use crate::geometry::Ellipsoid;
     use glam::Vec3;
@@ -487,9 +488,10 @@ mod tests {
         // Far off, and just outside a sphere (which every ray then tests).
         let beside = shapes[17].center + Vec3::new(0.1, 0.0, 0.0);
         for light in [Vec3::new(9.0, 7.0, 12.0), beside] {
-            let farthest = farthest_from(&grid.spheres, &grid.short, &[light])[0];
+            let is_short = short_marks(grid.spheres.len(), &grid.short);
+            let farthest = farthest_from(&grid.spheres, &is_short, &[light])[0];
             let build = |room: usize, scratch: &mut Scratch| {
-                LightBuffer::new(&grid.spheres, &grid.short, light, farthest, room, scratch)
+                LightBuffer::new(&grid.spheres, &is_short, light, farthest, room, scratch)
             };
             let bytes = build(usize::MAX, scratch).unwrap().bytes();
             assert_eq!(build(bytes, scratch).unwrap().bytes(), bytes, "{light}");

@@ -316,29 +316,34 @@ impl Face {
 /// passes that fill them.
 #[derive(Default)]
 pub(in crate::index::grid) struct Scratch {
-    is_short: Vec<bool>,
     seen: Vec<Seen>,
     spans: Vec<Span>,
     fill: FillScratch,
 }
 
-/// For each of `lights`, how far from it the balls of `spheres` (the
-/// grid's copies) reach, the grid's `short` list left out, with a margin:
-/// every origin a light's buffer answers lies within it. One pass over the
-/// spheres for all the lights, since it reads each sphere and does little
-/// with it.
-pub(in crate::index::grid) fn farthest_from<R: Real>(
-    spheres: &[Candidate<R>],
-    short: &[u32],
-    lights: &[V3<R>],
-) -> Vec<f64> {
-    let lights: Vec<DVec3> = lights.iter().map(|l| l.to_dvec3()).collect();
-    let mut is_short = vec![false; spheres.len()];
+/// Which of `spheres` spheres are in the grid's `short` list (tested by
+/// every ray, listed nowhere), by position: what every light's build asks.
+pub(in crate::index::grid) fn short_marks(spheres: usize, short: &[u32]) -> Vec<bool> {
+    let mut is_short = vec![false; spheres];
     for &i in short {
         is_short[i as usize] = true;
     }
+    is_short
+}
+
+/// For each of `lights`, how far from it the balls of `spheres` (the
+/// grid's copies) reach, those of the short list (`is_short`) left out,
+/// with a margin: every origin a light's buffer answers lies within it.
+/// One pass over the spheres for all the lights, since it reads each
+/// sphere and does little with it.
+pub(in crate::index::grid) fn farthest_from<R: Real>(
+    spheres: &[Candidate<R>],
+    is_short: &[bool],
+    lights: &[V3<R>],
+) -> Vec<f64> {
+    let lights: Vec<DVec3> = lights.iter().map(|l| l.to_dvec3()).collect();
     let none = || vec![0.0_f64; lights.len()];
-    (spheres.par_iter().zip(&is_short))
+    (spheres.par_iter().zip(is_short))
         .filter(|(_, &short)| !short)
         .fold(none, |mut farthest, (s, _)| {
             let (center, r) = (s.frame.center.to_dvec3(), s.bound.to_f64());
@@ -357,29 +362,20 @@ pub(in crate::index::grid) fn farthest_from<R: Real>(
 
 impl<R: Real> LightBuffer<R> {
     /// The buffer of `light` over `spheres` (the grid's copies), with the
-    /// grid's `short` list tested by every ray, for origins within
+    /// short list (`is_short`, from [`short_marks`]) tested by every ray,
+    /// for origins within
     /// `farthest` of the light (from [`farthest_from`]), holding at most
     /// `room` bytes ([`LightBuffer::bytes`]).
     pub(in crate::index::grid) fn new(
         spheres: &[Candidate<R>],
-        short: &[u32],
+        is_short: &[bool],
         light: V3<R>,
         farthest: f64,
         room: usize,
         scratch: &mut Scratch,
     ) -> Result<Self, NoBuffer> {
         let light64 = light.to_dvec3();
-        let Scratch {
-            is_short,
-            seen,
-            spans,
-            fill,
-        } = scratch;
-        is_short.clear();
-        is_short.resize(spheres.len(), false);
-        for &i in short {
-            is_short[i as usize] = true;
-        }
+        let Scratch { seen, spans, fill } = scratch;
         let ball = |s: &Candidate<R>| (s.frame.center.to_dvec3() - light64, s.bound.to_f64());
         if !(farthest.is_finite() && farthest > 0.0) {
             return Err(NoBuffer::Unsuited);
