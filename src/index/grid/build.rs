@@ -134,7 +134,8 @@ pub fn levels<R: Real>(shapes: &[Ellipsoid<R>], level_bytes: usize) -> Built {
     let parts = members
         .into_iter()
         .filter(|ids| !ids.is_empty())
-        .flat_map(|ids| split_by_density(&extents, ids));
+        .flat_map(|ids| split_by_density(&extents, ids))
+        .collect();
     let by_cell = merge_equal_cells(&extents, parts);
     // A scene of several levels may get a gate: a byte per heading and one
     // for the levels' mask, for each of at most one cube per sphere (see `gate`).

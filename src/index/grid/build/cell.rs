@@ -8,6 +8,7 @@ use super::lattice::reciprocal;
 use crate::index::grid::walk::floor_to_int;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::ops::Bound::{Excluded, Unbounded};
 
 /// How many times a sparse level's cells may double beyond the sphere size.
 const MAX_COARSENING: i32 = 16;
@@ -20,35 +21,119 @@ const OCCUPANCY_BITS_PER_CENTRE: usize = 4;
 const MIN_OCCUPANCY_BITS: usize = 1 << 12;
 const MAX_OCCUPANCY_BITS: usize = 1 << 22;
 
-/// The mean number of sphere centres per occupied cell of side `cell`.
+/// The cells a set of sphere centres occupies, counted at each cell side
+/// tried so far.
 ///
 /// The occupied cells are counted by linear counting ([`Distinct`]) in a
-/// bitmap of four bits per centre (a power of two, 512 B to 512 KiB), so
-/// the cells, never more than the centres, stay well under its size up to
-/// 2²⁰ centres, and a small scene neither zeroes nor keeps a large bitmap.
-fn centres_per_occupied_cell(extents: &Extents, ids: &[u32], cell: f64) -> f64 {
-    let bitmap_bits = (OCCUPANCY_BITS_PER_CENTRE * ids.len())
-        .next_power_of_two()
-        .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
-    let per_cell = reciprocal(cell);
-    // One bitmap per thread's share, not per small chunk: a bitmap may be 512 KiB.
-    let share = ids
-        .len()
-        .div_ceil(2 * rayon::current_num_threads())
-        .max(1 << 16);
-    let occupied = ids
-        .par_chunks(share)
-        .map(|chunk| {
-            let mut seen = Distinct::with_bits(bitmap_bits);
-            for &id in chunk {
-                let p = extents.center[id as usize] * per_cell;
-                seen.insert([floor_to_int(p.x), floor_to_int(p.y), floor_to_int(p.z)]);
-            }
-            seen
-        })
-        .reduce(|| Distinct::with_bits(bitmap_bits), Distinct::union)
-        .estimate();
-    ids.len() as f64 / occupied
+/// bitmap of four bits per centre of the whole scene (a power of two, 512 B
+/// to 512 KiB), so the cells, never more than the centres, stay well under
+/// its size up to 2²⁰ centres, and a small scene neither zeroes nor keeps a
+/// large bitmap. Every set is counted in bitmaps of that one size, so that
+/// a part joining a level is counted alone: the union of its bitmap and
+/// the level's has exactly the bits a pass over both would set, and the
+/// level's centres, often most of the scene's, are not read again for
+/// every part that joins it.
+struct Census<'a> {
+    extents: &'a Extents,
+    bits: usize,
+    /// A bitmap per thread, cleared for each pass: fresh ones would cost
+    /// more in page faults than a pass over a part of 10⁵ centres.
+    scratch: Vec<Distinct>,
+}
+
+/// A set of centres, and its bitmaps by cell side (the side's bits).
+struct Counted {
+    ids: Vec<u32>,
+    at: Vec<(u64, Distinct)>,
+}
+
+impl Counted {
+    fn new(ids: Vec<u32>) -> Self {
+        Counted {
+            ids,
+            at: Vec::new(),
+        }
+    }
+
+    fn bitmap(&self, cell: f64) -> Option<&Distinct> {
+        (self.at.iter())
+            .find(|(bits, _)| *bits == cell.to_bits())
+            .map(|(_, seen)| seen)
+    }
+}
+
+/// Centres a thread's share of a pass takes at least.
+const CENTRES_PER_SHARE: usize = 1 << 15;
+
+impl<'a> Census<'a> {
+    fn new(extents: &'a Extents, centres: usize) -> Self {
+        let bits = (OCCUPANCY_BITS_PER_CENTRE * centres)
+            .next_power_of_two()
+            .clamp(MIN_OCCUPANCY_BITS, MAX_OCCUPANCY_BITS);
+        let threads = rayon::current_num_threads();
+        Census {
+            extents,
+            bits,
+            scratch: (0..threads).map(|_| Distinct::with_bits(bits)).collect(),
+        }
+    }
+
+    /// The bitmap of the cells of side `cell` that `ids`' centres lie in:
+    /// one pass over them.
+    fn occupied(&mut self, ids: &[u32], cell: f64) -> Distinct {
+        let per_cell = reciprocal(cell);
+        let share = (ids.len())
+            .div_ceil(self.scratch.len())
+            .max(CENTRES_PER_SHARE);
+        let shares = ids.len().div_ceil(share);
+        let extents = self.extents;
+        (self.scratch.par_iter_mut())
+            .zip(ids.par_chunks(share))
+            .for_each(|(seen, chunk)| {
+                seen.clear();
+                for &id in chunk {
+                    let p = extents.center[id as usize] * per_cell;
+                    seen.insert([floor_to_int(p.x), floor_to_int(p.y), floor_to_int(p.z)]);
+                }
+            });
+        let mut all = Distinct::with_bits(self.bits);
+        for seen in &self.scratch[..shares] {
+            all.add(seen);
+        }
+        all
+    }
+
+    /// The mean number of `set`'s centres per occupied cell of side `cell`
+    /// (see [`Census::bitmap`]).
+    fn centres_per_cell(&mut self, set: &mut Counted, joined: &mut [Counted], cell: f64) -> f64 {
+        let centres = set.ids.len() as f64;
+        centres / self.bitmap(set, joined, cell).estimate()
+    }
+
+    /// `set`'s bitmap at `cell`: kept from before, else joined from the
+    /// bitmaps of `joined` (sets whose centres together are `set`'s) or
+    /// counted, and kept.
+    fn bitmap<'s>(
+        &mut self,
+        set: &'s mut Counted,
+        joined: &mut [Counted],
+        cell: f64,
+    ) -> &'s Distinct {
+        if set.bitmap(cell).is_none() {
+            let seen = match joined {
+                [] => self.occupied(&set.ids, cell),
+                parts => {
+                    let mut all = Distinct::with_bits(self.bits);
+                    for part in parts {
+                        all.add(self.bitmap(part, &mut [], cell));
+                    }
+                    all
+                }
+            };
+            set.at.push((cell.to_bits(), seen));
+        }
+        set.bitmap(cell).expect("kept")
+    }
 }
 
 /// Parts (coarsest first) whose chosen cells come out no finer than a
@@ -58,9 +143,10 @@ fn centres_per_occupied_cell(extents: &Extents, ids: &[u32], cell: f64) -> f64 {
 /// two. Keyed by the cell's bits, coarsest last.
 pub(super) fn merge_equal_cells(
     extents: &Extents,
-    parts: impl Iterator<Item = Vec<u32>>,
+    parts: Vec<Vec<u32>>,
 ) -> BTreeMap<u64, Vec<u32>> {
-    let mut by_cell: BTreeMap<u64, Vec<u32>> = BTreeMap::new();
+    let mut census = Census::new(extents, parts.iter().map(Vec::len).sum());
+    let mut by_cell: BTreeMap<u64, Counted> = BTreeMap::new();
     for ids in parts {
         // The level a cell joins: the coarsest made that is no coarser.
         // (Positive f64s order as their bits do.)
@@ -76,33 +162,62 @@ pub(super) fn merge_equal_cells(
             let level = joins(finest);
             level.is_some() && level == joins(coarsest)
         };
-        let mut cell = choose_cell(extents, &ids, same_level);
+        let mut part = Counted::new(ids);
+        let reach = extents.max_reach(&part.ids);
+        let next = |cell: f64| {
+            (by_cell.range((Excluded(cell.to_bits()), Unbounded)))
+                .next()
+                .map(|(&b, _)| f64::from_bits(b))
+        };
+        let sparse =
+            |cell| census.centres_per_cell(&mut part, &mut [], cell) <= MAX_CENTRES_PER_CELL;
+        let mut cell = choose_cell(reach, same_level, next, sparse);
         if let Some(bits) = joins(cell) {
             cell = f64::from_bits(bits);
         }
-        let mut ids = ids;
         // A merged level's cell may come out finer, onto another level's.
-        while let Some(mut other) = by_cell.remove(&cell.to_bits()) {
-            other.append(&mut ids);
-            ids = other;
-            let again = choose_cell(extents, &ids, |_, _| false);
+        while let Some(level) = by_cell.remove(&cell.to_bits()) {
+            let mut joined = [level, part];
+            let reach = joined
+                .iter()
+                .map(|c| extents.max_reach(&c.ids))
+                .fold(0.0, f64::max);
+            let ids = joined.iter().flat_map(|c| c.ids.iter().copied()).collect();
+            let mut merged = Counted::new(ids);
+            let sparse = |cell| {
+                census.centres_per_cell(&mut merged, &mut joined, cell) <= MAX_CENTRES_PER_CELL
+            };
+            let again = choose_cell(reach, |_, _| false, |_| None, sparse);
+            part = merged;
             if again == cell {
                 break;
             }
             cell = again;
         }
-        by_cell.insert(cell.to_bits(), ids);
+        // What a later part joining it asks first (the level's cells,
+        // doubled, when it is dense): the rest would only take memory.
+        part.at
+            .retain(|&(bits, _)| bits == cell.to_bits() || bits == (2.0 * cell).to_bits());
+        by_cell.insert(cell.to_bits(), part);
     }
-    by_cell
+    (by_cell.into_iter())
+        .map(|(cell, counted)| (cell, counted.ids))
+        .collect()
 }
 
-/// The cell side of a level: the smallest power of two at least its largest
-/// diameter, doubled while cells stay sparse. The search stops early, at
-/// the finest cell still possible, once `settled(finest, coarsest)` says
-/// that any cell between the finest and the coarsest still possible will
-/// do for the caller.
-fn choose_cell(extents: &Extents, ids: &[u32], settled: impl Fn(f64, f64) -> bool) -> f64 {
-    let reach = extents.max_reach(ids);
+/// The cell side of a level whose largest reach is `reach`: the smallest
+/// power of two at least its largest diameter, doubled while cells stay
+/// `sparse`. The search stops early, at the finest cell still possible,
+/// once `settled(finest, coarsest)` says that any cell between the finest
+/// and the coarsest still possible will do for the caller; `next(cell)` is
+/// the next coarser cell the caller has a level of, which the search tries
+/// before the cells between, as the one likely to settle it.
+fn choose_cell(
+    reach: f64,
+    settled: impl Fn(f64, f64) -> bool,
+    next: impl Fn(f64) -> Option<f64>,
+    mut sparse: impl FnMut(f64) -> bool,
+) -> f64 {
     let finest = (2.0 * reach).log2().ceil().exp2();
     // Sparse levels: coarser cells while a cell still holds few centres, so
     // that rays cross fewer empty cells on their way to a sphere. Doubling
@@ -110,26 +225,26 @@ fn choose_cell(extents: &Extents, ids: &[u32], settled: impl Fn(f64, f64) -> boo
     // only grow with the doublings: search for the most that stay sparse
     // (a few passes over the level instead of one per doubling).
     let cell = |doublings: i32| finest * f64::from(doublings).exp2();
-    let sparse = |doublings: i32| {
-        centres_per_occupied_cell(extents, ids, cell(doublings)) <= MAX_CENTRES_PER_CELL
-    };
     // The answer lies in good..bad (as doublings) all along.
     let open = |good: i32, bad: i32| bad - good > 1 && !settled(cell(good), cell(bad - 1));
+    let doublings = |c: f64| (c / finest).log2().round() as i32;
     // Galloping up from the finest cells first: a dense level, where most
-    // spheres usually are, is settled by one pass.
+    // spheres usually are, is settled by one pass; a sparse one then tries
+    // the next level's cell, where sparse dust joining it settles.
     let (mut good, mut bad) = (0, MAX_COARSENING + 1);
     let mut probe = 1;
     while probe < bad && open(good, bad) {
-        if sparse(probe) {
+        if sparse(cell(probe)) {
             good = probe;
-            probe *= 2;
+            let level = next(cell(good)).map_or(0, doublings);
+            probe = (2 * probe).max(level);
         } else {
             bad = probe;
         }
     }
     while open(good, bad) {
         let mid = (good + bad) / 2;
-        if sparse(mid) {
+        if sparse(cell(mid)) {
             good = mid;
         } else {
             bad = mid;
@@ -160,8 +275,8 @@ mod tests {
                 reach: vec![0.1; n],
                 slack: vec![0.0; n],
             };
-            let ids: Vec<u32> = (0..n as u32).collect();
-            centres_per_occupied_cell(&extents, &ids, 1.0)
+            let mut set = Counted::new((0..n as u32).collect());
+            Census::new(&extents, n).centres_per_cell(&mut set, &mut [], 1.0)
         };
         for (cells, per_cell) in [(3, 1), (40, 5), (1_000, 2), (200_000, 1), (300_000, 3)] {
             let e = estimate(cells, per_cell);
@@ -188,7 +303,12 @@ mod tests {
             slack: vec![0.0; n],
         };
         let ids: Vec<u32> = (0..n as u32).collect();
-        let exact = choose_cell(&extents, &ids, |_, _| false);
+        let mut census = Census::new(&extents, n);
+        let mut sparse = |cell| {
+            let mean = census.centres_per_cell(&mut Counted::new(ids.clone()), &mut [], cell);
+            mean <= MAX_CENTRES_PER_CELL
+        };
+        let exact = choose_cell(0.001, |_, _| false, |_| None, &mut sparse);
         assert!(exact > 0.01, "{exact}");
         for levels in [
             vec![],
@@ -207,7 +327,14 @@ mod tests {
             let settled = |finest: f64, coarsest: f64| {
                 joins(finest).is_some() && joins(finest) == joins(coarsest)
             };
-            let early = choose_cell(&extents, &ids, settled);
+            let next = |cell: f64| {
+                levels
+                    .iter()
+                    .copied()
+                    .filter(|&l| l > cell)
+                    .reduce(f64::min)
+            };
+            let early = choose_cell(0.001, settled, next, &mut sparse);
             assert_eq!(
                 joins(early),
                 joins(exact),

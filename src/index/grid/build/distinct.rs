@@ -39,10 +39,20 @@ impl Distinct {
 
     /// The cells noted in either bitmap; both must have the same size.
     pub(super) fn union(mut self, other: Distinct) -> Distinct {
-        (self.words.iter_mut())
-            .zip(other.words)
-            .for_each(|(a, b)| *a |= b);
+        self.add(&other);
         self
+    }
+
+    /// Adds the cells noted in `other`, a bitmap of the same size.
+    pub(super) fn add(&mut self, other: &Distinct) {
+        (self.words.iter_mut())
+            .zip(&other.words)
+            .for_each(|(a, b)| *a |= b);
+    }
+
+    /// Forgets every cell noted.
+    pub(super) fn clear(&mut self) {
+        self.words.fill(0);
     }
 
     /// The estimated number of distinct cells noted, at least 1. A full
@@ -91,7 +101,8 @@ mod tests {
             a.insert([i, 0, 0]);
             b.insert([i + 1_000, 0, 0]);
         }
-        let e = a.union(b).estimate();
+        a.add(&b);
+        let e = a.estimate();
         assert!((e - 4_000.0).abs() <= 200.0, "{e}");
     }
 }
