@@ -143,6 +143,14 @@ impl Axes {
         let i = c + self.up[axis];
         self.plane0[axis] + i as f64 * self.per_plane[axis]
     }
+
+    /// For each axis, the t at which the ray leaves the cell one step from
+    /// `c` along it: what [`advance`] moves into the next crossing
+    /// when it steps that way.
+    #[inline(always)]
+    fn crossings_after(&self, c: &[i64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|k| self.crossing(k, c[k] + self.step[k]))
+    }
 }
 
 /// Cells per region side, as a power of two (a region is 4×4×4 blocks).
@@ -254,6 +262,45 @@ pub(super) fn first_axis(t: &[f64; 3]) -> usize {
     } else {
         usize::from(one_first)
     }
+}
+
+/// [`Level::step`] for the walk's inner loop, with `after` (from
+/// [`Axes::crossings_after`]) kept beside `t_next`: each axis's cell and
+/// crossings are updated where the ray steps and kept where it does not,
+/// by selects on constant indices, so that all of them stay in registers,
+/// and the crossing the step moves into `t_next` was found a step ahead,
+/// off the chain from one step to the next. The same cells and crossings
+/// as [`Level::step`] (the same expressions); an axis not stepped along
+/// never reaches its exit, so checking all three stops where it does.
+/// Returns the axis stepped and whether the step entered a new block.
+#[inline(always)]
+fn advance(
+    axes: &Axes,
+    c: &mut [i64; 3],
+    t_next: &mut [f64; 3],
+    after: &mut [f64; 3],
+    limit: f64,
+) -> Option<(usize, bool)> {
+    let a = first_axis(t_next);
+    // `t_next[a]`, compared as `first_axis` compares.
+    let t = lesser(lesser(t_next[0], t_next[1]), t_next[2]);
+    if t > limit {
+        return None;
+    }
+    let mut entered = false;
+    for k in 0..3 {
+        let here = k == a;
+        let moved = c[k] + axes.step[k];
+        let beyond = axes.crossing(k, moved + axes.step[k]);
+        entered |= here & (moved & (BLOCK_SIDE - 1) == axes.block_entry[k]);
+        c[k] = if here { moved } else { c[k] };
+        t_next[k] = if here { after[k] } else { t_next[k] };
+        after[k] = if here { beyond } else { after[k] };
+    }
+    if (0..3).any(|k| c[k] == axes.exit[k]) {
+        return None;
+    }
+    Some((a, entered))
 }
 
 /// The part of [t_lo, t_hi] the ray spends inside the box `lo..hi`.
@@ -478,6 +525,7 @@ impl Level {
             return self.walk_probing::<FILTERED>(&axes, &octant_ray, c, t_next, limit, visit);
         }
         let mut region = Cached::<Region>::new();
+        let mut after = axes.crossings_after(&c);
         // The occupied block the walk is in; None until it is looked up.
         let mut block: Option<Block> = None;
         // The walk's cell's bit in its block's mask, kept as the walk steps.
@@ -492,22 +540,31 @@ impl Level {
                             bit = cell_bit(c);
                             *block.insert(cells)
                         }
+                        // The cell and crossings are handed over as copies,
+                        // so that the loop's own never have an address and
+                        // stay in registers.
                         Err(EmptyAhead::InRegion { blocks }) => {
-                            if !self.cross_blocks(ray, &axes, &mut c, &mut t_next, limit, blocks) {
+                            let (mut moved, mut t) = (c, t_next);
+                            if !self.cross_blocks(ray, &axes, &mut moved, &mut t, limit, blocks) {
                                 return;
                             }
+                            (c, t_next, after) = (moved, t, axes.crossings_after(&moved));
                             continue;
                         }
                         Err(EmptyAhead::Box(empty)) if empty.is_one_block() => {
-                            if !self.step_out_of_block(&axes, &mut c, &mut t_next, limit) {
+                            let (mut moved, mut t) = (c, t_next);
+                            if !self.step_out_of_block(&axes, &mut moved, &mut t, limit) {
                                 return;
                             }
+                            (c, t_next, after) = (moved, t, axes.crossings_after(&moved));
                             continue;
                         }
                         Err(EmptyAhead::Box(empty)) => {
-                            if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
+                            let (mut moved, mut t) = (c, t_next);
+                            if !self.leave_empty(ray, &axes, &mut moved, &mut t, limit, empty) {
                                 return;
                             }
+                            (c, t_next, after) = (moved, t, axes.crossings_after(&moved));
                             continue;
                         }
                     }
@@ -518,10 +575,10 @@ impl Level {
                 let wanted = self.visit_cell::<FILTERED>(&octant_ray, &t_next, cell, visit);
                 limit = limit.min(wanted);
             }
-            let Some(a) = self.step(&axes, &mut c, &mut t_next, limit) else {
+            let Some((a, entered)) = advance(&axes, &mut c, &mut t_next, &mut after, limit) else {
                 return;
             };
-            if axes.entered_block(a, c[a]) {
+            if entered {
                 block = None;
             } else {
                 bit = bit.wrapping_add_signed(axes.bit_step[a]);
