@@ -288,6 +288,37 @@ mod tests {
         }
     }
 
+    /// A level and a part joining it, counted apart and joined, count
+    /// what a pass over all their centres counts, at every side tried.
+    #[test]
+    fn a_joined_count_is_the_count_of_both() {
+        let mut next = lcg(4);
+        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let center: Vec<DVec3> = (0..30_000)
+            .map(|_| DVec3::new(unit(), unit(), unit()) * 20.0)
+            .collect();
+        let n = center.len();
+        let extents = Extents {
+            center,
+            reach: vec![0.01; n],
+            slack: vec![0.0; n],
+        };
+        let mut census = Census::new(&extents, n);
+        for cell in [0.0625, 0.5, 4.0] {
+            // A level of every third centre, and a part of the rest.
+            let (level, part): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|i| i % 3 == 0);
+            let mut joined = [Counted::new(level), Counted::new(part)];
+            // The level's bitmap kept from a count of its own, the part's
+            // counted when they are joined.
+            census.centres_per_cell(&mut joined[0], &mut [], cell);
+            let all: Vec<u32> = joined.iter().flat_map(|c| c.ids.clone()).collect();
+            let mut merged = Counted::new(all.clone());
+            let from_parts = census.centres_per_cell(&mut merged, &mut joined, cell);
+            let whole = census.centres_per_cell(&mut Counted::new(all), &mut [], cell);
+            assert_eq!(from_parts, whole, "cell {cell}");
+        }
+    }
+
     #[test]
     fn stopping_once_settled_picks_the_level_the_full_search_does() {
         let mut next = lcg(9);
