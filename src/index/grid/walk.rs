@@ -265,14 +265,15 @@ pub(super) fn first_axis(t: &[f64; 3]) -> usize {
 }
 
 /// [`Level::step`] for the walk's inner loop, with `after` (from
-/// [`Axes::crossings_after`]) kept beside `t_next`: each axis's cell and
-/// crossings are updated where the ray steps and kept where it does not,
-/// by selects on constant indices, so that all of them stay in registers,
-/// and the crossing the step moves into `t_next` was found a step ahead,
-/// off the chain from one step to the next. The same cells and crossings
-/// as [`Level::step`] (the same expressions); an axis not stepped along
-/// never reaches its exit, so checking all three stops where it does.
-/// Returns the axis stepped and whether the step entered a new block.
+/// [`Axes::crossings_after`]) kept beside `t_next`: the crossing a step
+/// moves into `t_next` was found when the walk last stepped that way, off
+/// the chain from one step to the next, and each axis's cell and crossings
+/// are updated where the ray steps and kept where it does not by selects
+/// on constant indices, not through an index by the axis. The same cells
+/// and crossings as [`Level::step`] (the same expressions); an axis not
+/// stepped along never reaches its exit, so checking all three stops where
+/// it does. Returns the axis stepped and whether the step entered a new
+/// block.
 #[inline(always)]
 fn advance(
     axes: &Axes,
@@ -526,6 +527,9 @@ impl Level {
         }
         let mut region = Cached::<Region>::new();
         let mut after = axes.crossings_after(&c);
+        // Whether `after` is behind `c`: found again only when the walk next
+        // steps a cell, not after each leap across empty space.
+        let mut behind = false;
         // The occupied block the walk is in; None until it is looked up.
         let mut block: Option<Block> = None;
         // The walk's cell's bit in its block's mask, kept as the walk steps.
@@ -540,31 +544,25 @@ impl Level {
                             bit = cell_bit(c);
                             *block.insert(cells)
                         }
-                        // The cell and crossings are handed over as copies,
-                        // so that the loop's own never have an address and
-                        // stay in registers.
                         Err(EmptyAhead::InRegion { blocks }) => {
-                            let (mut moved, mut t) = (c, t_next);
-                            if !self.cross_blocks(ray, &axes, &mut moved, &mut t, limit, blocks) {
+                            if !self.cross_blocks(ray, &axes, &mut c, &mut t_next, limit, blocks) {
                                 return;
                             }
-                            (c, t_next, after) = (moved, t, axes.crossings_after(&moved));
+                            behind = true;
                             continue;
                         }
                         Err(EmptyAhead::Box(empty)) if empty.is_one_block() => {
-                            let (mut moved, mut t) = (c, t_next);
-                            if !self.step_out_of_block(&axes, &mut moved, &mut t, limit) {
+                            if !self.step_out_of_block(&axes, &mut c, &mut t_next, limit) {
                                 return;
                             }
-                            (c, t_next, after) = (moved, t, axes.crossings_after(&moved));
+                            behind = true;
                             continue;
                         }
                         Err(EmptyAhead::Box(empty)) => {
-                            let (mut moved, mut t) = (c, t_next);
-                            if !self.leave_empty(ray, &axes, &mut moved, &mut t, limit, empty) {
+                            if !self.leave_empty(ray, &axes, &mut c, &mut t_next, limit, empty) {
                                 return;
                             }
-                            (c, t_next, after) = (moved, t, axes.crossings_after(&moved));
+                            behind = true;
                             continue;
                         }
                     }
@@ -574,6 +572,9 @@ impl Level {
                 let cell = cells.cell_index(bit);
                 let wanted = self.visit_cell::<FILTERED>(&octant_ray, &t_next, cell, visit);
                 limit = limit.min(wanted);
+            }
+            if behind {
+                (after, behind) = (axes.crossings_after(&c), false);
             }
             let Some((a, entered)) = advance(&axes, &mut c, &mut t_next, &mut after, limit) else {
                 return;
