@@ -526,9 +526,10 @@ impl Level {
             return self.walk_probing::<FILTERED>(&axes, &octant_ray, c, t_next, limit, visit);
         }
         let mut region = Cached::<Region>::new();
+        // Each axis's crossing after its next ([`advance`]), and whether it
+        // is behind the cell: found again only when the walk next steps a
+        // cell, not after each leap across empty space.
         let mut after = axes.crossings_after(&c);
-        // Whether `after` is behind `c`: found again only when the walk next
-        // steps a cell, not after each leap across empty space.
         let mut behind = false;
         // The occupied block the walk is in; None until it is looked up.
         let mut block: Option<Block> = None;

@@ -288,21 +288,26 @@ mod tests {
         }
     }
 
+    /// `n` spheres of reach `reach` scattered through the cube from 0 to
+    /// `side`, by a fixed LCG from `seed`.
+    fn scattered(seed: u64, n: usize, side: f64, reach: f64) -> Extents {
+        let mut next = lcg(seed);
+        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        Extents {
+            center: (0..n)
+                .map(|_| DVec3::new(unit(), unit(), unit()) * side)
+                .collect(),
+            reach: vec![reach; n],
+            slack: vec![0.0; n],
+        }
+    }
+
     /// A level and a part joining it, counted apart and joined, count
     /// what a pass over all their centres counts, at every side tried.
     #[test]
     fn a_joined_count_is_the_count_of_both() {
-        let mut next = lcg(4);
-        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
-        let center: Vec<DVec3> = (0..30_000)
-            .map(|_| DVec3::new(unit(), unit(), unit()) * 20.0)
-            .collect();
-        let n = center.len();
-        let extents = Extents {
-            center,
-            reach: vec![0.01; n],
-            slack: vec![0.0; n],
-        };
+        let n = 30_000;
+        let extents = scattered(4, n, 20.0, 0.01);
         let mut census = Census::new(&extents, n);
         for cell in [0.0625, 0.5, 4.0] {
             // A level of every third centre, and a part of the rest.
@@ -321,18 +326,9 @@ mod tests {
 
     #[test]
     fn stopping_once_settled_picks_the_level_the_full_search_does() {
-        let mut next = lcg(9);
-        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
         // Sparse dust, so the search coarsens its cells a few times.
-        let center: Vec<DVec3> = (0..20_000)
-            .map(|_| DVec3::new(unit(), unit(), unit()) * 50.0)
-            .collect();
-        let n = center.len();
-        let extents = Extents {
-            center,
-            reach: vec![0.001; n],
-            slack: vec![0.0; n],
-        };
+        let n = 20_000;
+        let extents = scattered(9, n, 50.0, 0.001);
         let ids: Vec<u32> = (0..n as u32).collect();
         let mut census = Census::new(&extents, n);
         let mut sparse = |cell| {
