@@ -41,16 +41,20 @@ struct Census<'a> {
     scratch: Vec<Distinct>,
 }
 
-/// A set of centres, and its bitmaps by cell side (the side's bits).
+/// A set of spheres, their largest reach, and the bitmaps of their
+/// centres by cell side (the side's bits). A level joined by a part hands
+/// its ids on to the two together and keeps only its bitmaps.
 struct Counted {
     ids: Vec<u32>,
+    reach: f64,
     at: Vec<(u64, Distinct)>,
 }
 
 impl Counted {
-    fn new(ids: Vec<u32>) -> Self {
+    fn new(ids: Vec<u32>, reach: f64) -> Self {
         Counted {
             ids,
+            reach,
             at: Vec::new(),
         }
     }
@@ -120,8 +124,11 @@ impl<'a> Census<'a> {
         cell: f64,
     ) -> &'s Distinct {
         if set.bitmap(cell).is_none() {
+            // A level that handed its ids on counts only where it kept a bitmap.
+            let uncounted = |part: &Counted| part.ids.is_empty() && part.bitmap(cell).is_none();
             let seen = match joined {
                 [] => self.occupied(&set.ids, cell),
+                parts if parts.iter().any(uncounted) => self.occupied(&set.ids, cell),
                 parts => {
                     let mut all = Distinct::with_bits(self.bits);
                     for part in parts {
@@ -162,8 +169,8 @@ pub(super) fn merge_equal_cells(
             let level = joins(finest);
             level.is_some() && level == joins(coarsest)
         };
-        let mut part = Counted::new(ids);
-        let reach = extents.max_reach(&part.ids);
+        let reach = extents.max_reach(&ids);
+        let mut part = Counted::new(ids, reach);
         let next = |cell: f64| {
             (by_cell.range((Excluded(cell.to_bits()), Unbounded)))
                 .next()
@@ -176,14 +183,12 @@ pub(super) fn merge_equal_cells(
             cell = f64::from_bits(bits);
         }
         // A merged level's cell may come out finer, onto another level's.
-        while let Some(level) = by_cell.remove(&cell.to_bits()) {
+        while let Some(mut level) = by_cell.remove(&cell.to_bits()) {
+            let mut ids = std::mem::take(&mut level.ids);
+            ids.extend_from_slice(&part.ids);
+            let reach = level.reach.max(part.reach);
             let mut joined = [level, part];
-            let reach = joined
-                .iter()
-                .map(|c| extents.max_reach(&c.ids))
-                .fold(0.0, f64::max);
-            let ids = joined.iter().flat_map(|c| c.ids.iter().copied()).collect();
-            let mut merged = Counted::new(ids);
+            let mut merged = Counted::new(ids, reach);
             let sparse = |cell| {
                 census.centres_per_cell(&mut merged, &mut joined, cell) <= MAX_CENTRES_PER_CELL
             };
@@ -275,7 +280,7 @@ mod tests {
                 reach: vec![0.1; n],
                 slack: vec![0.0; n],
             };
-            let mut set = Counted::new((0..n as u32).collect());
+            let mut set = Counted::new((0..n as u32).collect(), 0.1);
             Census::new(&extents, n).centres_per_cell(&mut set, &mut [], 1.0)
         };
         for (cells, per_cell) in [(3, 1), (40, 5), (1_000, 2), (200_000, 1), (300_000, 3)] {
@@ -312,16 +317,25 @@ mod tests {
         for cell in [0.0625, 0.5, 4.0] {
             // A level of every third centre, and a part of the rest.
             let (level, part): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|i| i % 3 == 0);
-            let mut joined = [Counted::new(level), Counted::new(part)];
+            let mut joined = [Counted::new(level, 0.01), Counted::new(part, 0.01)];
             // The level's bitmap kept from a count of its own, the part's
             // counted when they are joined.
             census.centres_per_cell(&mut joined[0], &mut [], cell);
             let all: Vec<u32> = joined.iter().flat_map(|c| c.ids.clone()).collect();
-            let mut merged = Counted::new(all.clone());
+            let mut merged = Counted::new(all.clone(), 0.01);
             let from_parts = census.centres_per_cell(&mut merged, &mut joined, cell);
-            let whole = census.centres_per_cell(&mut Counted::new(all), &mut [], cell);
+            let whole = census.centres_per_cell(&mut Counted::new(all, 0.01), &mut [], cell);
             assert_eq!(from_parts, whole, "cell {cell}");
         }
+        // A level that handed its ids on and kept no bitmap at a side: the
+        // joined set is counted whole there.
+        let (level, part): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|i| i % 3 == 0);
+        let all: Vec<u32> = level.iter().chain(&part).copied().collect();
+        let mut joined = [Counted::new(Vec::new(), 0.01), Counted::new(part, 0.01)];
+        let mut merged = Counted::new(all.clone(), 0.01);
+        let from_parts = census.centres_per_cell(&mut merged, &mut joined, 0.125);
+        let whole = census.centres_per_cell(&mut Counted::new(all, 0.01), &mut [], 0.125);
+        assert_eq!(from_parts, whole);
     }
 
     #[test]
@@ -332,7 +346,8 @@ mod tests {
         let ids: Vec<u32> = (0..n as u32).collect();
         let mut census = Census::new(&extents, n);
         let mut sparse = |cell| {
-            let mean = census.centres_per_cell(&mut Counted::new(ids.clone()), &mut [], cell);
+            let set = &mut Counted::new(ids.clone(), 0.001);
+            let mean = census.centres_per_cell(set, &mut [], cell);
             mean <= MAX_CENTRES_PER_CELL
         };
         let exact = choose_cell(0.001, |_, _| false, |_| None, &mut sparse);
