@@ -363,9 +363,8 @@ pub(in crate::index::grid) fn farthest_from<R: Real>(
 impl<R: Real> LightBuffer<R> {
     /// The buffer of `light` over `spheres` (the grid's copies), with the
     /// short list (`is_short`, from [`short_marks`]) tested by every ray,
-    /// for origins within
-    /// `farthest` of the light (from [`farthest_from`]), holding at most
-    /// `room` bytes ([`LightBuffer::bytes`]).
+    /// for origins within `farthest` of the light (from [`farthest_from`]),
+    /// holding at most `room` bytes ([`LightBuffer::bytes`]).
     pub(in crate::index::grid) fn new(
         spheres: &[Candidate<R>],
         is_short: &[bool],

@@ -292,14 +292,14 @@ impl Filled<'_> {
     /// entry does (the footprint below it), for the cut to select by.
     fn word(&self, at: usize) -> u64 {
         let entry = self.listed[at].load(Relaxed);
-        u64::from(entry) << 16 | u64::from(self.footprints[at].load(Relaxed))
+        u64::from(entry) << u16::BITS | u64::from(self.footprints[at].load(Relaxed))
     }
 }
 
 /// An entry and its footprint from [`Filled::word`]'s word.
 fn unpack(word: u64) -> (Listed, Footprint) {
     (
-        Listed::from_bits((word >> 16) as u32),
+        Listed::from_bits((word >> u16::BITS) as u32),
         Footprint::from_bits(word as u16),
     )
 }
@@ -370,7 +370,8 @@ fn cut_lists(
         .collect()
 }
 
-/// Sorts each list of `kept` (texel k's at `starts[k]..starts[k + 1]`)
+/// Sorts each list of `kept` (the window from texel k's at
+/// `starts[k]..starts[k + 1]`)
 /// nearest step first, ties by position: a ray then reads a list only as
 /// far as the spheres nearer to the light than its origin, and meets them
 /// in an order independent of the threads'.
