@@ -69,7 +69,7 @@ mod listed;
 
 pub(super) use build::{farthest_from, short_marks, Scratch};
 
-use super::{Candidate, Tests};
+use super::{Copies, Tests};
 use crate::geometry::{Ray, Real, Vec3Ops, V3};
 use footprint::{Footprint, SUB, WINDOW};
 use glam::DVec3;
@@ -255,7 +255,7 @@ impl<R: Real> LightBuffer<R> {
     #[inline]
     pub(super) fn blocked(
         &self,
-        spheres: &[Candidate<R>],
+        spheres: &Copies<R>,
         origin: V3<R>,
         budget: &mut impl Tests,
     ) -> Option<bool> {
@@ -271,8 +271,10 @@ impl<R: Real> LightBuffer<R> {
         let ray = Ray::new(origin, self.light - origin);
         let mut blocks = |sphere: u32| {
             budget.spend(1);
-            let frame = &spheres[sphere as usize].frame;
-            frame.intersect(&ray, R::zero(), R::one()).is_some()
+            spheres
+                .frame(sphere)
+                .intersect(&ray, R::zero(), R::one())
+                .is_some()
         };
         // Every list is nearest first, so its first sphere beyond the origin
         // ends it (a window's by its packed step: a few more pass, none that

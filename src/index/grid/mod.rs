@@ -23,6 +23,7 @@
 
 mod build;
 mod cone;
+mod copies;
 mod gate;
 mod light_buffer;
 mod occupancy;
@@ -38,7 +39,8 @@ mod vectors;
 mod walk;
 
 use super::{Answered, Hit, LightBuffers, SphereIndex};
-use crate::geometry::{Ellipsoid, Ray, Real, UnitSphereFrame, V3};
+use crate::geometry::{Ellipsoid, Ray, Real, V3};
+use copies::Copies;
 use gate::Gate;
 use glam::DVec3;
 use light_buffer::{LightBuffer, NoBuffer};
@@ -46,7 +48,6 @@ use octant::Octants;
 pub use packet::{
     GROUP_SIDE as PACKET_GROUP_SIDE, RAYS as PACKET_RAYS, TILE_SIDE as PACKET_TILE_SIDE,
 };
-use rayon::prelude::*;
 use seek::Nearest;
 use table::BlockTable;
 pub use vectors::Vectors;
@@ -118,25 +119,9 @@ impl Level {
     }
 }
 
-/// The grid's copy of a sphere: what the hit test reads, and which sphere it is.
-///
-/// 32 bytes in f32, aligned to them so that none straddles two cache lines:
-/// the allocator puts a large array 16 bytes past a line's start, where every
-/// other copy would cost two misses (see docs/index.md).
-#[derive(Clone, Copy, Debug)]
-#[repr(align(32))]
-struct Candidate<R: Real> {
-    frame: UnitSphereFrame<R>,
-    /// A radius around the centre no rounded hit lies beyond (rounded up from
-    /// [`build::Built::bound`]), for culling against a packet's cone.
-    bound: R,
-    id: u32,
-}
-
 pub struct VoxelHashGrid<R: Real> {
-    /// The spheres in the order the levels' cells list them (see
-    /// [`build`]): the candidates of one cell lie together in memory.
-    spheres: Vec<Candidate<R>>,
+    /// The spheres in the order the levels' cells list them ([`copies`]).
+    spheres: Copies<R>,
     /// The few largest spheres, which every ray tests before any level
     /// (positions in `spheres`).
     short: Vec<u32>,
@@ -210,11 +195,14 @@ impl Tests for Uncounted {
 }
 
 impl<R: Real> VoxelHashGrid<R> {
-    /// What the levels may hold per sphere: the index's bytes per sphere
-    /// less its copy of the sphere in f32, as renders keep it (a grid in
-    /// f64, as `report`'s reference renders keep it, holds twice that copy).
-    const LEVEL_BYTES_PER_SPHERE: usize =
-        crate::limits::INDEX_BYTES_PER_SPHERE.saturating_sub(std::mem::size_of::<Candidate<f32>>());
+    /// What the levels may hold per sphere: half the index's bytes per
+    /// sphere. The copies of the spheres take 24 of the rest in f32, as
+    /// renders keep them (a grid in f64, as `report`'s reference renders
+    /// keep it, holds twice that); the levels are held to 32 all the same,
+    /// since the finer cells a wider share would keep on spheres packed on
+    /// surfaces or in strands trace slower (docs/index.md, "Index bytes
+    /// within 64 a sphere").
+    const LEVEL_BYTES_PER_SPHERE: usize = crate::limits::INDEX_BYTES_PER_SPHERE / 2;
 
     /// Builds the grid in parallel on the current rayon pool.
     pub fn new(shapes: &[Ellipsoid<R>]) -> Self {
@@ -224,18 +212,11 @@ impl<R: Real> VoxelHashGrid<R> {
             order,
             bound,
         } = build::levels(shapes, Self::LEVEL_BYTES_PER_SPHERE);
-        let spheres = order
-            .par_iter()
-            .map(|&id| Candidate {
-                frame: shapes[id as usize].frame(),
-                bound: R::from_f64(bound[id as usize]).next_up(),
-                id,
-            })
-            .collect();
+        let spheres = Copies::new(shapes, order, &bound);
         VoxelHashGrid {
+            gate: Gate::over(&levels, spheres.len()),
             spheres,
             short,
-            gate: Gate::over(&levels, order.len()),
             levels,
             empty_space: EmptySpace::default(),
             vectors: Vectors::detect(),
@@ -314,7 +295,7 @@ impl<R: Real> VoxelHashGrid<R> {
     pub fn bytes(&self) -> usize {
         self.levels.iter().map(Level::bytes).sum::<usize>()
             + self.gate.as_ref().map_or(0, Gate::bytes)
-            + self.spheres.capacity() * std::mem::size_of::<Candidate<R>>()
+            + self.spheres.bytes()
             + self.levels.capacity() * std::mem::size_of::<Level>()
             + self.short.capacity() * 4
     }
@@ -426,8 +407,8 @@ impl<R: Real> VoxelHashGrid<R> {
     /// with the walks' test and (t, id) order (see [`Self::every_sphere_fits`]).
     fn nearest_of_all(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<Hit<R>> {
         let mut nearest = Nearest::new(t_max);
-        for sphere in &self.spheres {
-            nearest.offer(sphere, ray, t_min);
+        for i in 0..self.spheres.len() as u32 {
+            nearest.offer(&self.spheres, i, ray, t_min);
         }
         nearest.best
     }
@@ -446,8 +427,7 @@ impl<R: Real> VoxelHashGrid<R> {
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
     #[inline(always)]
     fn blocks(&self, i: u32, ray: &Ray<R>, t_max: R) -> bool {
-        self.spheres[i as usize]
-            .frame
+        (self.spheres.frame(i))
             .intersect(ray, R::zero(), t_max)
             .is_some()
     }
@@ -456,7 +436,7 @@ impl<R: Real> VoxelHashGrid<R> {
 #[cfg(test)]
 mod tests {
     use super::light_buffer::{farthest_from, short_marks, NoBuffer, Scratch};
-    use super::{Candidate, LightBuffer, VoxelHashGrid};
+    use super::{LightBuffer, VoxelHashGrid};
     use crate::geometry::Ellipsoid;
     use glam::Vec3;
 
@@ -497,13 +477,5 @@ mod tests {
             assert_eq!(build(bytes, scratch).unwrap().bytes(), bytes, "{light}");
             assert_eq!(build(bytes - 1, scratch).err(), Some(NoBuffer::NoRoom));
         }
-    }
-
-    /// The alignment adds no padding: two f32 copies to a cache line, and
-    /// the bytes per sphere the index reports stay what they were.
-    #[test]
-    fn an_f32_candidate_is_half_a_cache_line() {
-        assert_eq!(std::mem::size_of::<Candidate<f32>>(), 32);
-        assert_eq!(std::mem::align_of::<Candidate<f32>>(), 32);
     }
 }

@@ -98,9 +98,11 @@ impl<R: Real> Lanes<R> {
         self.improved = 0;
     }
 
-    /// Tests every lane against one candidate, keeping each lane's nearest (t, id).
+    /// Tests every lane against one candidate, keeping each lane's nearest
+    /// (t, id); `id` gives the candidate's, read only once a lane finds a
+    /// hit as near as its best.
     #[inline(always)]
-    fn test(&mut self, frame: &UnitSphereFrame<R>, id: u32) {
+    fn test(&mut self, frame: &UnitSphereFrame<R>, id: impl FnOnce() -> u32) {
         let found =
             lanes::hits_from_one_origin(frame, self.origin, &self.dir, self.t_min, &self.cap);
         // Most tests find no lane a nearer hit: one pass of compares without
@@ -110,6 +112,7 @@ impl<R: Real> Lanes<R> {
         if !nearer {
             return;
         }
+        let id = id();
         for (i, &t) in found.iter().enumerate() {
             // NaN (no hit) fails both comparisons.
             if t < self.best_t[i] || (t == self.best_t[i] && id < self.best_id[i]) {
@@ -487,12 +490,13 @@ impl<R: Real> VoxelHashGrid<R> {
     /// may meet it ([`GroupCull`]), spending a test per group.
     #[inline(always)]
     fn test_eye_groups(&self, i: u32, cull: &GroupCull, rays: &mut Groups<R>, searching: u32) {
-        let sphere = &self.spheres[i as usize];
-        let center = sphere.frame.center.to_dvec3();
-        let hit = cull.groups_hit(center, sphere.bound.to_f64(), searching);
+        let spheres = &self.spheres;
+        let center = spheres.center(i).to_dvec3();
+        let hit = cull.groups_hit(center, spheres.bound(i).to_f64(), searching);
         rays.budget.spend(u64::from(hit.count_ones()));
+        let frame = spheres.frame(i);
         for g in set_bits(u64::from(hit)) {
-            rays.groups[g].test(&sphere.frame, sphere.id);
+            rays.groups[g].test(&frame, || spheres.id(i));
         }
     }
 }

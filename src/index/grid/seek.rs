@@ -6,7 +6,7 @@
 
 use super::gate::Gate;
 use super::walk::{greater, Ray64, Visit};
-use super::{search_end, search_start, Candidate, Level, Tests, VoxelHashGrid};
+use super::{search_end, search_start, Copies, Level, Tests, VoxelHashGrid};
 use crate::geometry::{Ray, Real};
 use crate::index::Hit;
 
@@ -56,15 +56,16 @@ impl<R: Real> Nearest<R> {
         self.best.is_some().then(|| self.cap.to_f64())
     }
 
-    /// Tests `sphere`, keeping its hit if it comes first in (t, id) order.
+    /// Tests copy `i` of `spheres`, keeping its hit if it comes first in
+    /// (t, id) order.
     #[inline(always)]
-    pub(super) fn offer(&mut self, sphere: &Candidate<R>, ray: &Ray<R>, t_min: R) {
-        let Some(t) = sphere.frame.intersect(ray, t_min, self.cap) else {
+    pub(super) fn offer(&mut self, spheres: &Copies<R>, i: u32, ray: &Ray<R>, t_min: R) {
+        let Some(t) = spheres.frame(i).intersect(ray, t_min, self.cap) else {
             return;
         };
         let hit = Hit {
             t,
-            sphere: sphere.id,
+            sphere: spheres.id(i),
         };
         if self.best.is_none_or(|b| hit.is_before(&b)) {
             self.best = Some(hit);
@@ -147,7 +148,7 @@ impl<R: Real, B: Tests> SeekNearest<'_, R, B> {
     fn test(&mut self, i: u32) {
         self.budget.spend(1);
         self.nearest
-            .offer(&self.grid.spheres[i as usize], self.ray, self.t_min);
+            .offer(&self.grid.spheres, i, self.ray, self.t_min);
     }
 
     /// Where the search starts and ends, before any level's slack: up to

@@ -379,13 +379,13 @@ impl<R: Real> VoxelHashGrid<R> {
         rays: &mut ShadowGroups<R>,
         searching: u32,
     ) -> bool {
-        let sphere = &self.spheres[i as usize];
-        let center = sphere.frame.center.to_dvec3();
-        let hit = cull.groups_hit(center, sphere.bound.to_f64(), searching);
+        let center = self.spheres.center(i).to_dvec3();
+        let hit = cull.groups_hit(center, self.spheres.bound(i).to_f64(), searching);
         rays.budget.spend(u64::from(hit.count_ones()));
         let mut blocks = false;
+        let frame = self.spheres.frame(i);
         for g in set_bits(u64::from(hit)) {
-            blocks |= rays.groups[g].test(&sphere.frame);
+            blocks |= rays.groups[g].test(&frame);
         }
         if blocks {
             rays.last_blocker = Some(i);

@@ -218,15 +218,15 @@ mod tests {
                         + rng.unit_vector() * radius * rng.range(0.0, 3.0);
                     let shape = Ellipsoid::new(center.as_vec3(), Vec3::splat(radius as f32));
                     let grid = VoxelHashGrid::<f32>::new(&[shape]);
-                    let candidate = &grid.spheres[0];
+                    let copies = &grid.spheres;
                     let kept = slopes.groups_hit(
-                        candidate.frame.center.as_dvec3() - origin.as_dvec3(),
-                        f64::from(candidate.bound),
+                        copies.center(0).as_dvec3() - origin.as_dvec3(),
+                        f64::from(copies.bound(0)),
                         ALL_GROUPS,
                     );
                     for (i, d) in dirs.iter().enumerate() {
                         let ray = Ray::new(origin, *d);
-                        let hit = candidate.frame.intersect(&ray, 0.0, f32::INFINITY);
+                        let hit = copies.frame(0).intersect(&ray, 0.0, f32::INFINITY);
                         hits += usize::from(hit.is_some());
                         if kept >> (i / LANES) & 1 == 0 {
                             ruled_out += 1;

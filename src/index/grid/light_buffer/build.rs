@@ -8,7 +8,7 @@ use super::{
     WINDOW,
 };
 use crate::geometry::{f32_at_most, Real, Vec3Ops, V3};
-use crate::index::grid::Candidate;
+use crate::index::grid::Copies;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -337,16 +337,16 @@ pub(in crate::index::grid) fn short_marks(spheres: usize, short: &[u32]) -> Vec<
 /// One pass over the spheres for all the lights, since it reads each
 /// sphere and does little with it.
 pub(in crate::index::grid) fn farthest_from<R: Real>(
-    spheres: &[Candidate<R>],
+    spheres: &Copies<R>,
     is_short: &[bool],
     lights: &[V3<R>],
 ) -> Vec<f64> {
     let lights: Vec<DVec3> = lights.iter().map(|l| l.to_dvec3()).collect();
     let none = || vec![0.0_f64; lights.len()];
-    (spheres.par_iter().zip(is_short))
+    ((0..spheres.len() as u32).into_par_iter().zip(is_short))
         .filter(|(_, &short)| !short)
-        .fold(none, |mut farthest, (s, _)| {
-            let (center, r) = (s.frame.center.to_dvec3(), s.bound.to_f64());
+        .fold(none, |mut farthest, (i, _)| {
+            let (center, r) = (spheres.center(i).to_dvec3(), spheres.bound(i).to_f64());
             for (farthest, &light) in farthest.iter_mut().zip(&lights) {
                 *farthest = farthest.max(((center - light).abs() + r).length());
             }
@@ -366,7 +366,7 @@ impl<R: Real> LightBuffer<R> {
     /// for origins within `farthest` of the light (from [`farthest_from`]),
     /// holding at most `room` bytes ([`LightBuffer::bytes`]).
     pub(in crate::index::grid) fn new(
-        spheres: &[Candidate<R>],
+        spheres: &Copies<R>,
         is_short: &[bool],
         light: V3<R>,
         farthest: f64,
@@ -375,7 +375,13 @@ impl<R: Real> LightBuffer<R> {
     ) -> Result<Self, NoBuffer> {
         let light64 = light.to_dvec3();
         let Scratch { seen, spans, fill } = scratch;
-        let ball = |s: &Candidate<R>| (s.frame.center.to_dvec3() - light64, s.bound.to_f64());
+        let ball = |i: usize| {
+            let i = i as u32;
+            (
+                spheres.center(i).to_dvec3() - light64,
+                spheres.bound(i).to_f64(),
+            )
+        };
         if !(farthest.is_finite() && farthest > 0.0) {
             return Err(NoBuffer::Unsuited);
         }
@@ -385,13 +391,13 @@ impl<R: Real> LightBuffer<R> {
         // Every one is written below: what the light before left needs no
         // clearing.
         seen.resize(spheres.len(), Seen::default());
-        let cover = (seen.par_chunks_mut(SPHERES_PER_TASK))
-            .zip(spheres.par_chunks(SPHERES_PER_TASK))
+        let cover = (seen.par_chunks_mut(SPHERES_PER_TASK).enumerate())
             .zip(is_short.par_chunks(SPHERES_PER_TASK))
-            .map(|((seen, spheres), is_short)| {
+            .map(|((task, seen), is_short)| {
                 let mut cover = Cover::none();
-                for ((seen, s), &short) in seen.iter_mut().zip(spheres).zip(is_short) {
-                    let (x, r) = ball(s);
+                let first = task * SPHERES_PER_TASK;
+                for (k, (seen, &short)) in seen.iter_mut().zip(is_short).enumerate() {
+                    let (x, r) = ball(first + k);
                     *seen = Seen::of(x, r, near, short, &mut cover);
                 }
                 cover
@@ -413,7 +419,7 @@ impl<R: Real> LightBuffer<R> {
         let several: Vec<(u32, Span)> = (seen.par_iter().enumerate())
             .filter(|(_, s)| s.face == SEVERAL_FACES)
             .flat_map_iter(|(i, _)| {
-                let (x, r) = ball(&spheres[i]);
+                let (x, r) = ball(i);
                 let mut rects = Vec::new();
                 for_each_rect(x, r, near, |f, rect| rects.push(faces[f].span(f, &rect)));
                 let wide = rects.iter().map(Span::texels).sum::<usize>() > WIDEST_TEXELS;
