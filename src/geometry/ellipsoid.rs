@@ -420,8 +420,11 @@ impl<R: Real> UnitSphereFrame<R> {
 
     /// The test in f64, its roots rounded to `R` before they are compared
     /// with the interval (so that a root is in it exactly when its `R` is).
+    ///
+    /// By value: a caller that builds its frame in registers (the grid's
+    /// copies of spheres) then stores it only on the way here.
     #[inline(never)]
-    pub fn intersect_wide(&self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
+    pub fn intersect_wide(self, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
         let (f, f_squared) = self.wide_origin(ray.origin);
         self.intersect_wide_from(f, f_squared, ray.dir, t_min, t_max)
     }

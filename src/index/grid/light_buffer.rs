@@ -271,10 +271,7 @@ impl<R: Real> LightBuffer<R> {
         let ray = Ray::new(origin, self.light - origin);
         let mut blocks = |sphere: u32| {
             budget.spend(1);
-            spheres
-                .frame(sphere)
-                .intersect(&ray, R::zero(), R::one())
-                .is_some()
+            (spheres.intersect(sphere, &ray, R::zero(), R::one())).is_some()
         };
         // Every list is nearest first, so its first sphere beyond the origin
         // ends it (a window's by its packed step: a few more pass, none that

@@ -427,9 +427,7 @@ impl<R: Real> VoxelHashGrid<R> {
     /// Whether sphere `i` (a position in `spheres`) meets the ray with t in (0, t_max).
     #[inline(always)]
     fn blocks(&self, i: u32, ray: &Ray<R>, t_max: R) -> bool {
-        (self.spheres.frame(i))
-            .intersect(ray, R::zero(), t_max)
-            .is_some()
+        (self.spheres).intersect(i, ray, R::zero(), t_max).is_some()
     }
 }
 

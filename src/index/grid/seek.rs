@@ -60,7 +60,7 @@ impl<R: Real> Nearest<R> {
     /// (t, id) order.
     #[inline(always)]
     pub(super) fn offer(&mut self, spheres: &Copies<R>, i: u32, ray: &Ray<R>, t_min: R) {
-        let Some(t) = spheres.frame(i).intersect(ray, t_min, self.cap) else {
+        let Some(t) = spheres.intersect(i, ray, t_min, self.cap) else {
             return;
         };
         let hit = Hit {
