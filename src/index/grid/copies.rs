@@ -102,8 +102,8 @@ impl<R: Real> Copies<R> {
     /// shape's [`Ellipsoid::intersect`], bit for bit.
     ///
     /// A sphere's frame is built here with one inverse scale on every
-    /// axis, which the inlined test then keeps in registers; built as
-    /// [`Copies::frame`] builds it, picking the scales at run time, it went
+    /// axis, which the inlined test then keeps in registers: built by
+    /// [`Copies::frame`], which picks the scales at run time, it would go
     /// through memory on each test.
     #[inline(always)]
     pub(super) fn intersect(&self, i: u32, ray: &Ray<R>, t_min: R, t_max: R) -> Option<R> {
@@ -189,6 +189,33 @@ mod tests {
                 assert_eq!(copies.id(i as u32), id);
                 assert_eq!(copies.center(i as u32), shapes[id as usize].center);
             }
+        }
+    }
+
+    proptest::proptest! {
+        /// A copy's test answers as its shape's, bit for bit, sphere or
+        /// ellipsoid, at random extreme scales and for rays from near and far.
+        #[test]
+        fn a_copy_is_hit_where_its_shape_is(
+            scale_exp in -20i32..20,
+            center in proptest::array::uniform3(-4.0f32..4.0),
+            radii in proptest::array::uniform3(0.05f32..2.0),
+            origin in proptest::array::uniform3(-8.0f32..8.0),
+            aim in proptest::array::uniform3(-1.0f32..1.0),
+            far in proptest::bool::ANY,
+            stretched in proptest::bool::ANY,
+        ) {
+            let scale = 2f32.powi(scale_exp);
+            let radii = if stretched { Vec3::from(radii) } else { Vec3::splat(radii[0]) };
+            let shape = Ellipsoid::<f32>::new(Vec3::from(center) * scale, radii * scale);
+            let other = Ellipsoid::<f32>::new(Vec3::splat(9.0) * scale, Vec3::splat(scale));
+            let shapes = [other, shape];
+            let copies = Copies::new(&shapes, vec![1, 0], &[1.0, 1.0]);
+            let reach = if far { 1e4 } else { 1.0 };
+            let o = Vec3::from(origin) * scale * reach;
+            let ray = Ray::new(o, shape.center + Vec3::from(aim) * radii * scale - o);
+            let t = copies.intersect(0, &ray, 0.0, f32::INFINITY);
+            proptest::prop_assert_eq!(t.map(f32::to_bits), shape.intersect(&ray, 0.0, f32::INFINITY).map(f32::to_bits));
         }
     }
 }
