@@ -371,10 +371,9 @@ fn cut_lists(
 }
 
 /// Sorts each list of `kept` (the window from texel k's at
-/// `starts[k]..starts[k + 1]`)
-/// nearest step first, ties by position: a ray then reads a list only as
-/// far as the spheres nearer to the light than its origin, and meets them
-/// in an order independent of the threads'.
+/// `starts[k]..starts[k + 1]`) nearest step first, ties by position: a ray
+/// then reads a list only as far as the spheres nearer to the light than
+/// its origin, and meets them in an order independent of the threads'.
 fn sort_lists(starts: &[u32], kept: Filled) {
     (starts.par_windows(2))
         .with_min_len(LISTS_PER_SORT_TASK)
